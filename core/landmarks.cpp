@@ -1,0 +1,61 @@
+#include "core/landmarks.hpp"
+
+namespace lipdrive {
+namespace {
+
+// Each set adds one region to the previous one (DESIGN.md 4.1).
+constexpr std::array<int, kNumLandmarks> make_order() {
+  std::array<int, kNumLandmarks> order{};
+  int n = 0;
+  for (int i = 48; i <= 67; ++i) order[n++] = i;  // F1: lips
+  for (int i = 27; i <= 35; ++i) order[n++] = i;  // F2: + nose
+  for (int i = 36; i <= 47; ++i) order[n++] = i;  // F3: + eyes
+  for (int i = 17; i <= 26; ++i) order[n++] = i;  // F4: + eyebrows
+  for (int i = 0; i <= 16; ++i) order[n++] = i;   // F5: + jaw contour
+  return order;
+}
+
+template <LandmarkSet S>
+constexpr auto sorted_set() {
+  constexpr auto order = make_order();
+  std::array<int, landmark_count(S)> set{};
+  for (int i = 0; i < landmark_count(S); ++i) set[i] = order[i];
+  for (std::size_t i = 1; i < set.size(); ++i)  // insertion sort (constexpr)
+    for (std::size_t j = i; j > 0 && set[j - 1] > set[j]; --j) std::swap(set[j - 1], set[j]);
+  return set;
+}
+
+constexpr auto kF1 = sorted_set<LandmarkSet::F1>();
+constexpr auto kF2 = sorted_set<LandmarkSet::F2>();
+constexpr auto kF3 = sorted_set<LandmarkSet::F3>();
+constexpr auto kF4 = sorted_set<LandmarkSet::F4>();
+constexpr auto kF5 = sorted_set<LandmarkSet::F5>();
+
+}  // namespace
+
+std::span<const int> landmark_indices(LandmarkSet set) {
+  switch (set) {
+    case LandmarkSet::F1: return kF1;
+    case LandmarkSet::F2: return kF2;
+    case LandmarkSet::F3: return kF3;
+    case LandmarkSet::F4: return kF4;
+    case LandmarkSet::F5: return kF5;
+  }
+  return {};
+}
+
+std::optional<LandmarkSet> parse_landmark_set(std::string_view name) {
+  if (name == "F1") return LandmarkSet::F1;
+  if (name == "F2") return LandmarkSet::F2;
+  if (name == "F3") return LandmarkSet::F3;
+  if (name == "F4") return LandmarkSet::F4;
+  if (name == "F5") return LandmarkSet::F5;
+  return std::nullopt;
+}
+
+std::string_view landmark_set_name(LandmarkSet set) {
+  constexpr std::array<std::string_view, 5> names{"F1", "F2", "F3", "F4", "F5"};
+  return names[static_cast<int>(set)];
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,48 @@
+// A 3D morphable model (DESIGN.md 4.2): S = mean + basis * (stddev .* alpha).
+#pragma once
+
+#include "core/landmarks.hpp"
+
+#include <Eigen/Core>
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lipdrive {
+
+using Triangle = std::array<std::uint32_t, 3>;
+
+/// A triangle mesh in model space: millimetres, x towards the subject's left
+/// (image right when the face looks at the camera), y up, z out of the face.
+struct Mesh {
+  Eigen::Matrix3Xf vertices;  // column i = vertex i
+  std::vector<Triangle> triangles;
+};
+
+struct MorphableModel {
+  Eigen::VectorXf mean;    // 3N: x1,y1,z1,...,xN,yN,zN
+  Eigen::VectorXf stddev;  // K: standard deviation of each component (sqrt eigenvalue)
+  Eigen::MatrixXf basis;   // 3N x K, orthonormal columns, descending variance
+  float total_variance = 0;  // variance of the training poses, including dropped components
+  std::vector<Triangle> triangles;
+  std::array<std::int32_t, kNumLandmarks> landmark_vertex{};  // iBUG index -> vertex, -1 = unmapped
+  std::vector<std::string> pose_names;  // the example poses the model was built from
+  Eigen::MatrixXf pose_coefficients;    // K x P: column p = alpha of pose p
+
+  int num_vertices() const { return static_cast<int>(mean.size() / 3); }
+  int num_components() const { return static_cast<int>(stddev.size()); }
+  int num_poses() const { return static_cast<int>(pose_names.size()); }
+
+  /// Shape vector for coefficients alpha (in units of each component's stddev).
+  Eigen::VectorXf shape(const Eigen::VectorXf& alpha) const;
+  /// The mesh of a shape vector.
+  Mesh mesh(const Eigen::VectorXf& shape_vector) const;
+  std::optional<int> pose_index(std::string_view name) const;
+  int mapped_landmark_count() const;
+};
+
+}  // namespace lipdrive

@@ -1,0 +1,14 @@
+#include "firmware_app/paths.hpp"
+
+namespace lipdrive {
+
+std::filesystem::path model_directory() {
+  const auto exe_dir = std::filesystem::read_symlink("/proc/self/exe").parent_path();
+  const auto build_tree = exe_dir / "models";
+  if (std::filesystem::is_directory(build_tree)) return build_tree;
+  return exe_dir.parent_path() / "share" / "lipdrive" / "models";
+}
+
+std::filesystem::path default_model_path() { return model_directory() / "default.lpm"; }
+
+}  // namespace lipdrive

@@ -1,0 +1,14 @@
+// Where lipdrive finds its own data files.
+#pragma once
+
+#include <filesystem>
+
+namespace lipdrive {
+
+/// The directory holding the default models: <exe dir>/models in a build tree,
+/// <prefix>/share/lipdrive/models when installed.
+std::filesystem::path model_directory();
+/// The 161-pose default model in model_directory().
+std::filesystem::path default_model_path();
+
+}  // namespace lipdrive

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# The quick start: installs what is needed, builds, then
+#   ./scripts/dev.sh run    runs the main job on the embedded defaults
+#   ./scripts/dev.sh test   runs the whole test suite
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+job=${1:-}
+case "$job" in
+  run|test) shift ;;
+  *) echo "usage: $0 run|test [args...]" >&2; exit 2 ;;
+esac
+
+./scripts/install-deps.sh
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build build -j"$(nproc)"
+
+case "$job" in
+  run)
+    ./build/lipdrive model info build/models/default.lpm
+    exec ./build/lipdrive model fit-demo "$@"
+    ;;
+  test)
+    exec ctest --test-dir build --output-on-failure -j"$(nproc)" "$@"
+    ;;
+esac
