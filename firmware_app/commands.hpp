@@ -13,4 +13,14 @@ void add_model_commands(CLI::App& app);
 void add_model_head_commands(CLI::App& model);
 void add_fit_demo_command(CLI::App& model);
 
+/// `lipdrive eval` (cmd_eval.cpp) and `lipdrive plot` (cmd_plot.cpp).
+void add_eval_command(CLI::App& app);
+void add_plot_command(CLI::App& app);
+
+/// `lipdrive fixture talking-face` (cmd_fixture.cpp).
+void add_fixture_command(CLI::App& app);
+
+/// `lipdrive process` (cmd_process.cpp).
+void add_process_command(CLI::App& app);
+
 }  // namespace lipdrive

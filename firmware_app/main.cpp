@@ -15,6 +15,10 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "lipdrive 0.1.0");
   lipdrive::add_model_commands(app);
+  lipdrive::add_eval_command(app);
+  lipdrive::add_plot_command(app);
+  lipdrive::add_fixture_command(app);
+  lipdrive::add_process_command(app);
 
   try {
     app.parse(argc, argv);

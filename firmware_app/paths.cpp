@@ -11,4 +11,11 @@ std::filesystem::path model_directory() {
 
 std::filesystem::path default_model_path() { return model_directory() / "default.lpm"; }
 
+std::filesystem::path default_fixture_path() {
+  const auto exe_dir = std::filesystem::read_symlink("/proc/self/exe").parent_path();
+  const auto build_tree = exe_dir / "fixtures" / "talking_face.avi";
+  if (std::filesystem::exists(build_tree)) return build_tree;
+  return exe_dir.parent_path() / "share" / "lipdrive" / "talking_face.avi";
+}
+
 }  // namespace lipdrive

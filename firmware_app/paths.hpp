@@ -10,5 +10,8 @@ namespace lipdrive {
 std::filesystem::path model_directory();
 /// The 161-pose default model in model_directory().
 std::filesystem::path default_model_path();
+/// The generated talking-face clip the simulated camera replays by default:
+/// <exe dir>/fixtures/talking_face.avi in a build tree, <prefix>/share/lipdrive/talking_face.avi installed.
+std::filesystem::path default_fixture_path();
 
 }  // namespace lipdrive

@@ -1,0 +1,81 @@
+#include "core/face_tracker.hpp"
+
+#include <dlib/image_processing/frontal_face_detector.h>
+#include <dlib/opencv/cv_image.h>
+
+#include <algorithm>
+#include <vector>
+
+namespace lipdrive {
+
+struct FaceTracker::Detector {
+  dlib::frontal_face_detector hog = dlib::get_frontal_face_detector();
+};
+
+double interocular_distance(const Landmarks2D& landmarks) {
+  return (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)).norm();
+}
+
+bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_height, double min_interocular_px) {
+  if (!landmarks.allFinite()) return false;
+  if ((landmarks.row(0).array() < 0).any() || (landmarks.row(0).array() > image_width - 1).any() ||
+      (landmarks.row(1).array() < 0).any() || (landmarks.row(1).array() > image_height - 1).any())
+    return false;
+  const double iod = interocular_distance(landmarks);
+  if (iod < min_interocular_px || iod > image_width) return false;
+
+  // Face axes from the eyes, so a tilted head is judged in its own frame: "across" points
+  // from the right eye to the left eye (image right for a frontal face), "down" is
+  // perpendicular to it (image y grows downwards).
+  const Eigen::Vector2d eye_mid = 0.5 * (landmarks.col(ibug::kLeftEyeOuter) + landmarks.col(ibug::kRightEyeOuter));
+  const Eigen::Vector2d across = (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)) / iod;
+  const Eigen::Vector2d down(-across.y(), across.x());
+  const auto depth = [&](int i) { return (landmarks.col(i) - eye_mid).dot(down) / iod; };
+  const auto lateral = [&](int i) { return (landmarks.col(i) - eye_mid).dot(across) / iod; };
+  const double mouth = 0.5 * (depth(ibug::kOuterLipTop) + depth(ibug::kOuterLipBottom));
+  // Eye line, nose tip, mouth, chin in this order; chin 0.7..2.2 inter-ocular distances
+  // below the eyes (about 1.3 for an adult, more with the mouth wide open).
+  if (!(0 < depth(ibug::kNoseTip) && depth(ibug::kNoseTip) < mouth && mouth < depth(ibug::kChin))) return false;
+  if (depth(ibug::kChin) < 0.7 || depth(ibug::kChin) > 2.2) return false;
+  return lateral(ibug::kMouthCornerRight) < lateral(ibug::kMouthCornerLeft);
+}
+
+FaceTracker::FaceTracker(std::shared_ptr<const ShapePredictorData> predictor, TrackerSettings settings)
+    : settings_(settings), predictor_(std::move(predictor)), detector_(std::make_unique<Detector>()) {}
+
+FaceTracker::~FaceTracker() = default;
+FaceTracker::FaceTracker(FaceTracker&&) noexcept = default;
+FaceTracker& FaceTracker::operator=(FaceTracker&&) noexcept = default;
+
+bool FaceTracker::detect(const cv::Mat& gray) {
+  const std::vector<dlib::rectangle> faces = detector_->hog(dlib::cv_image<unsigned char>(gray));
+  if (faces.empty()) return false;
+  // One performer per camera: the largest face is theirs.
+  const auto largest = std::max_element(faces.begin(), faces.end(),
+                                        [](const auto& a, const auto& b) { return a.area() < b.area(); });
+  box_ = FaceBox{largest->left(), largest->top(), largest->right(), largest->bottom()};
+  return true;
+}
+
+bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks) {
+  return predictor_.feature_contrast() >= settings_.min_feature_contrast &&
+         plausible_face(landmarks, gray.cols, gray.rows, settings_.min_interocular_px);
+}
+
+TrackStatus FaceTracker::track(const cv::Mat& gray, Landmarks2D& landmarks) {
+  const bool acquiring = !tracking_;
+  if (acquiring && !detect(gray)) return TrackStatus::kNoFace;
+  predictor_.predict(gray, box_, landmarks);
+  tracking_ = accept(gray, landmarks);
+  if (!tracking_) return TrackStatus::kNoFace;
+  box_ = predictor_.data()->box_for(landmarks);  // where the face will be in the next frame
+  return acquiring ? TrackStatus::kAcquired : TrackStatus::kTracking;
+}
+
+bool FaceTracker::check_fit(const Landmarks2D& landmarks, double reprojection_error_px) {
+  const bool good = reprojection_error_px <= settings_.max_relative_fit_error * interocular_distance(landmarks);
+  if (!good) tracking_ = false;
+  return good;
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,97 @@
+#include "core/metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Pairs {
+  std::vector<double> truth;
+  std::vector<double> output;
+};
+
+Pairs finite_pairs(std::span<const double> truth, std::span<const double> output) {
+  Pairs pairs;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    if (std::isnan(truth[i]) || std::isnan(output[i])) continue;
+    pairs.truth.push_back(truth[i]);
+    pairs.output.push_back(output[i]);
+  }
+  return pairs;
+}
+
+/// (v - min) / (max - min); a constant series maps to zeros.
+std::vector<double> min_max_scaled(const std::vector<double>& values) {
+  const auto [lowest, highest] = std::minmax_element(values.begin(), values.end());
+  const double range = *highest - *lowest;
+  std::vector<double> scaled(values.size(), 0.0);
+  if (range > 0) {
+    std::transform(values.begin(), values.end(), scaled.begin(),
+                   [low = *lowest, range](double v) { return (v - low) / range; });
+  }
+  return scaled;
+}
+
+double mean(const std::vector<double>& values) {
+  double sum = 0;
+  for (double v : values) sum += v;
+  return sum / static_cast<double>(values.size());
+}
+
+double root_mean_square_difference(const std::vector<double>& a, const std::vector<double>& b) {
+  double sum = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) sum += (a[i] - b[i]) * (a[i] - b[i]);
+  return std::sqrt(sum / static_cast<double>(a.size()));
+}
+
+}  // namespace
+
+SeriesAgreement compare_series(std::span<const double> truth, std::span<const double> output) {
+  if (truth.size() != output.size()) {
+    throw std::invalid_argument("compare_series: the series differ in length");
+  }
+  const Pairs pairs = finite_pairs(truth, output);
+  const std::size_t n = pairs.truth.size();
+  if (n == 0) return {0, kNaN, kNaN, kNaN, kNaN, kNaN};
+
+  SeriesAgreement result;
+  result.pairs_used = static_cast<int>(n);
+  result.rmse_scaled =
+      root_mean_square_difference(min_max_scaled(pairs.truth), min_max_scaled(pairs.output));
+
+  double abs_sum = 0;
+  double abs_max = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double error = std::abs(pairs.output[i] - pairs.truth[i]);
+    abs_sum += error;
+    abs_max = std::max(abs_max, error);
+  }
+  result.mae = abs_sum / static_cast<double>(n);
+  result.max_abs_error = abs_max;
+
+  // Pearson r = cov(z, ẑ) / (σ(z) σ(ẑ)), from centred sums (two passes, stable).
+  const double truth_mean = mean(pairs.truth);
+  const double output_mean = mean(pairs.output);
+  double cross = 0, truth_square = 0, output_square = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double dz = pairs.truth[i] - truth_mean;
+    const double dzhat = pairs.output[i] - output_mean;
+    cross += dz * dzhat;
+    truth_square += dz * dz;
+    output_square += dzhat * dzhat;
+  }
+  // Clamped because rounding can push a perfect correlation just past ±1.
+  result.pearson_r = (truth_square > 0 && output_square > 0)
+                         ? std::clamp(cross / std::sqrt(truth_square * output_square), -1.0, 1.0)
+                         : kNaN;
+  result.std_ratio = truth_square > 0 ? std::sqrt(output_square / truth_square) : kNaN;
+  return result;
+}
+
+}  // namespace lipdrive

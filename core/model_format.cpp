@@ -1,0 +1,281 @@
+#include "core/model_format.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <string_view>
+
+namespace lipdrive {
+namespace {
+
+constexpr std::string_view kMagic = "LPDMODEL";
+
+// Byte-at-a-time CRC table for the reflected IEEE polynomial, built at compile time.
+constexpr std::array<std::uint32_t, 256> make_crc_table() {
+  std::array<std::uint32_t, 256> table{};
+  for (std::uint32_t n = 0; n < 256; ++n) {
+    std::uint32_t c = n;
+    for (int bit = 0; bit < 8; ++bit) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+    table[n] = c;
+  }
+  return table;
+}
+constexpr auto kCrcTable = make_crc_table();
+
+// --- writing -------------------------------------------------------------
+
+class ByteWriter {
+ public:
+  void u16(std::uint16_t v) { put_le(v, 2); }
+  void u32(std::uint32_t v) { put_le(v, 4); }
+  void u64(std::uint64_t v) { put_le(v, 8); }
+  void i32(std::int32_t v) { u32(static_cast<std::uint32_t>(v)); }
+  void f32(float v) { u32(std::bit_cast<std::uint32_t>(v)); }
+  void floats(const float* data, Eigen::Index count) {
+    for (Eigen::Index i = 0; i < count; ++i) f32(data[i]);
+  }
+  void bytes(std::string_view s) { out_.insert(out_.end(), s.begin(), s.end()); }
+  std::vector<std::uint8_t>& buffer() { return out_; }
+
+ private:
+  void put_le(std::uint64_t v, int size) {
+    for (int i = 0; i < size; ++i) out_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  std::vector<std::uint8_t> out_;
+};
+
+void check_serializable(const MorphableModel& m) {
+  const auto fail = [](const std::string& what) {
+    throw std::invalid_argument("cannot serialize model: " + what);
+  };
+  if (m.mean.size() % 3 != 0) fail("mean size is not a multiple of 3");
+  if (m.basis.rows() != m.mean.size() || m.basis.cols() != m.stddev.size())
+    fail("basis is not 3N x K");
+  if (m.pose_coefficients.rows() != m.stddev.size() ||
+      m.pose_coefficients.cols() != static_cast<Eigen::Index>(m.pose_names.size()))
+    fail("pose_coefficients is not K x P");
+  for (const auto& name : m.pose_names)
+    if (name.size() > std::numeric_limits<std::uint16_t>::max()) fail("pose name longer than 65535 bytes");
+}
+
+// --- reading -------------------------------------------------------------
+
+std::uint64_t get_le(std::span<const std::uint8_t> bytes, std::size_t offset, int size) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < size; ++i) v |= std::uint64_t{bytes[offset + i]} << (8 * i);
+  return v;
+}
+
+// Sequential reader over the payload. Callers check the payload size against
+// the header first; take() still bounds-checks so a logic slip cannot read
+// out of bounds.
+class ByteReader {
+ public:
+  ByteReader(std::span<const std::uint8_t> bytes, const std::string& source)
+      : bytes_(bytes), source_(source) {}
+
+  std::uint16_t u16() { return static_cast<std::uint16_t>(get_le(take(2), 0, 2)); }
+  std::uint32_t u32() { return static_cast<std::uint32_t>(get_le(take(4), 0, 4)); }
+  std::int32_t i32() { return static_cast<std::int32_t>(u32()); }
+  float f32() { return std::bit_cast<float>(u32()); }
+  void floats(float* out, std::uint64_t count) {
+    for (std::uint64_t i = 0; i < count; ++i) out[i] = f32();
+  }
+  std::string string(std::size_t length) {
+    const auto s = take(length);
+    return std::string(s.begin(), s.end());
+  }
+  std::size_t remaining() const { return bytes_.size() - position_; }
+
+ private:
+  std::span<const std::uint8_t> take(std::size_t n) {
+    if (n > remaining())
+      throw ModelFormatError(source_ + ": payload ends early at byte " + std::to_string(position_) +
+                             " (sizes inconsistent with the payload length)");
+    const auto s = bytes_.subspan(position_, n);
+    position_ += n;
+    return s;
+  }
+  std::span<const std::uint8_t> bytes_;
+  std::size_t position_ = 0;
+  const std::string& source_;
+};
+
+struct Header {
+  std::uint32_t version, vertices, components, triangles, poses;
+  std::uint64_t payload_length;
+  std::uint32_t checksum;
+};
+
+// Payload bytes before the pose names, or nullopt when the sizes overflow 64 bits.
+std::optional<std::uint64_t> fixed_payload_bytes(const Header& h) {
+  const std::uint64_t n3 = 3ull * h.vertices;
+  std::uint64_t basis_values = 0, coefficient_values = 0, total = 0;
+  if (__builtin_mul_overflow(n3, std::uint64_t{h.components}, &basis_values)) return std::nullopt;
+  if (__builtin_mul_overflow(std::uint64_t{h.components}, std::uint64_t{h.poses}, &coefficient_values))
+    return std::nullopt;
+  const std::uint64_t values[] = {1, n3, h.components, basis_values, 3ull * h.triangles, kNumLandmarks,
+                                  coefficient_values};
+  for (std::uint64_t v : values) {
+    std::uint64_t bytes = 0;
+    if (__builtin_mul_overflow(v, std::uint64_t{4}, &bytes) || __builtin_add_overflow(total, bytes, &total))
+      return std::nullopt;
+  }
+  // Each pose name has at least its 2-byte length.
+  if (__builtin_add_overflow(total, 2ull * h.poses, &total)) return std::nullopt;
+  return total;
+}
+
+// Reads and checks the header and the payload's extent and checksum; returns the header.
+Header read_header(std::span<const std::uint8_t> bytes, const std::string& source) {
+  const std::size_t magic_bytes = std::min(bytes.size(), kMagic.size());
+  if (!std::equal(kMagic.begin(), kMagic.begin() + magic_bytes, bytes.begin()))
+    throw ModelFormatError(source + ": not a lipdrive model (bad magic, expected \"LPDMODEL\")");
+  if (bytes.size() < kModelHeaderSize)
+    throw ModelFormatError(source + ": truncated (expected at least " + std::to_string(kModelHeaderSize) +
+                           " header bytes, got " + std::to_string(bytes.size()) + ")");
+  Header h{};
+  h.version = static_cast<std::uint32_t>(get_le(bytes, 8, 4));
+  if (h.version != kModelFormatVersion)
+    throw ModelFormatError(source + ": unsupported format version " + std::to_string(h.version) +
+                           " (this build reads version " + std::to_string(kModelFormatVersion) + ")");
+  h.vertices = static_cast<std::uint32_t>(get_le(bytes, 12, 4));
+  h.components = static_cast<std::uint32_t>(get_le(bytes, 16, 4));
+  h.triangles = static_cast<std::uint32_t>(get_le(bytes, 20, 4));
+  h.poses = static_cast<std::uint32_t>(get_le(bytes, 24, 4));
+  h.payload_length = get_le(bytes, 28, 8);
+  h.checksum = static_cast<std::uint32_t>(get_le(bytes, 36, 4));
+
+  const std::uint64_t available = bytes.size() - kModelHeaderSize;
+  if (h.payload_length > available)
+    throw ModelFormatError(source + ": truncated (expected " +
+                           std::to_string(h.payload_length) + " payload bytes after the header, got " +
+                           std::to_string(available) + ")");
+  if (h.payload_length < available)
+    throw ModelFormatError(source + ": " + std::to_string(available - h.payload_length) +
+                           " unexpected bytes after the payload");
+  const std::uint32_t actual = crc32(bytes.subspan(kModelHeaderSize));
+  if (actual != h.checksum)
+    throw ModelFormatError(source + ": checksum mismatch (header says " + std::to_string(h.checksum) +
+                           ", payload has " + std::to_string(actual) + "): the file is corrupted");
+
+  const auto fixed = fixed_payload_bytes(h);
+  if (!fixed || *fixed > h.payload_length)
+    throw ModelFormatError(source + ": sizes inconsistent with the payload length (" +
+                           std::to_string(h.vertices) + " vertices, " + std::to_string(h.components) +
+                           " components, " + std::to_string(h.triangles) + " triangles, " +
+                           std::to_string(h.poses) + " poses do not fit in " +
+                           std::to_string(h.payload_length) + " bytes)");
+  if (h.vertices == 0) throw ModelFormatError(source + ": model has no vertices");
+  if (h.components == 0) throw ModelFormatError(source + ": model has no components");
+  if (std::uint64_t{h.components} > 3ull * h.vertices)
+    throw ModelFormatError(source + ": " + std::to_string(h.components) + " components exceed 3N = " +
+                           std::to_string(3ull * h.vertices));
+  return h;
+}
+
+void require_finite(const float* data, Eigen::Index count, const std::string& source, const char* field) {
+  for (Eigen::Index i = 0; i < count; ++i)
+    if (!std::isfinite(data[i]))
+      throw ModelFormatError(source + ": non-finite number in " + field + " at index " + std::to_string(i));
+}
+
+void validate_values(const MorphableModel& m, const std::string& source) {
+  if (!std::isfinite(m.total_variance) || m.total_variance < 0)
+    throw ModelFormatError(source + ": total_variance is negative or not finite");
+  require_finite(m.mean.data(), m.mean.size(), source, "mean");
+  require_finite(m.stddev.data(), m.stddev.size(), source, "stddev");
+  require_finite(m.basis.data(), m.basis.size(), source, "basis");
+  require_finite(m.pose_coefficients.data(), m.pose_coefficients.size(), source, "pose coefficients");
+  for (Eigen::Index k = 0; k < m.stddev.size(); ++k)
+    if (!(m.stddev[k] > 0))
+      throw ModelFormatError(source + ": stddev of component " + std::to_string(k) + " is not positive");
+
+  const auto n = static_cast<std::uint32_t>(m.num_vertices());
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
+    for (std::uint32_t v : m.triangles[t])
+      if (v >= n)
+        throw ModelFormatError(source + ": triangle " + std::to_string(t) + " index " + std::to_string(v) +
+                               " out of range (model has " + std::to_string(n) + " vertices)");
+  for (int l = 0; l < kNumLandmarks; ++l) {
+    const std::int32_t v = m.landmark_vertex[l];
+    if (v < -1 || (v >= 0 && static_cast<std::uint32_t>(v) >= n))
+      throw ModelFormatError(source + ": landmark " + std::to_string(l) + " vertex " + std::to_string(v) +
+                             " out of range (model has " + std::to_string(n) + " vertices, -1 = unmapped)");
+  }
+}
+
+}  // namespace
+
+std::uint32_t crc32(std::span<const std::uint8_t> bytes) {
+  std::uint32_t c = 0xFFFFFFFFu;
+  for (std::uint8_t b : bytes) c = kCrcTable[(c ^ b) & 0xFFu] ^ (c >> 8);
+  return c ^ 0xFFFFFFFFu;
+}
+
+std::vector<std::uint8_t> serialize_model(const MorphableModel& m) {
+  check_serializable(m);
+  ByteWriter payload;
+  payload.f32(m.total_variance);
+  payload.floats(m.mean.data(), m.mean.size());
+  payload.floats(m.stddev.data(), m.stddev.size());
+  payload.floats(m.basis.data(), m.basis.size());  // Eigen is column-major
+  for (const Triangle& t : m.triangles)
+    for (std::uint32_t v : t) payload.u32(v);
+  for (std::int32_t v : m.landmark_vertex) payload.i32(v);
+  for (const auto& name : m.pose_names) {
+    payload.u16(static_cast<std::uint16_t>(name.size()));
+    payload.bytes(name);
+  }
+  payload.floats(m.pose_coefficients.data(), m.pose_coefficients.size());
+
+  ByteWriter file;
+  file.bytes(kMagic);
+  file.u32(kModelFormatVersion);
+  file.u32(static_cast<std::uint32_t>(m.num_vertices()));
+  file.u32(static_cast<std::uint32_t>(m.num_components()));
+  file.u32(static_cast<std::uint32_t>(m.triangles.size()));
+  file.u32(static_cast<std::uint32_t>(m.pose_names.size()));
+  file.u64(payload.buffer().size());
+  file.u32(crc32(payload.buffer()));
+  auto& out = file.buffer();
+  out.insert(out.end(), payload.buffer().begin(), payload.buffer().end());
+  return std::move(out);
+}
+
+MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std::string& source_name) {
+  const Header h = read_header(bytes, source_name);
+  ByteReader in(bytes.subspan(kModelHeaderSize), source_name);
+  const Eigen::Index n3 = 3 * Eigen::Index{h.vertices};
+  const Eigen::Index k = h.components;
+
+  MorphableModel m;
+  m.total_variance = in.f32();
+  m.mean.resize(n3);
+  in.floats(m.mean.data(), static_cast<std::uint64_t>(n3));
+  m.stddev.resize(k);
+  in.floats(m.stddev.data(), h.components);
+  m.basis.resize(n3, k);
+  in.floats(m.basis.data(), static_cast<std::uint64_t>(n3 * k));
+  m.triangles.resize(h.triangles);
+  for (Triangle& t : m.triangles)
+    for (std::uint32_t& v : t) v = in.u32();
+  for (std::int32_t& v : m.landmark_vertex) v = in.i32();
+  m.pose_names.reserve(h.poses);
+  for (std::uint32_t p = 0; p < h.poses; ++p) m.pose_names.push_back(in.string(in.u16()));
+  m.pose_coefficients.resize(k, h.poses);
+  const auto coefficient_count = static_cast<std::uint64_t>(k) * h.poses;
+  if (in.remaining() != coefficient_count * 4)
+    throw ModelFormatError(source_name + ": sizes inconsistent with the payload length (" +
+                           std::to_string(in.remaining()) + " bytes left for " +
+                           std::to_string(coefficient_count) + " pose coefficients)");
+  in.floats(m.pose_coefficients.data(), coefficient_count);
+
+  validate_values(m, source_name);
+  return m;
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,40 @@
+#include "core/mouth_measures.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace lipdrive {
+
+MouthReference mouth_reference(const MorphableModel& model) {
+  const int vertex = model.landmark_vertex[ibug::kOuterLipTop];
+  if (vertex < 0 || vertex >= model.num_vertices())
+    throw std::invalid_argument("the model does not map landmark 51 (upper-lip midpoint) to a vertex");
+  const auto neutral = model.pose_index("neutral");
+  const Eigen::VectorXf shape =
+      neutral ? model.shape(model.pose_coefficients.col(*neutral)) : Eigen::VectorXf(model.mean);
+  return MouthReference{static_cast<double>(shape(3 * vertex + 2))};
+}
+
+double fit_quality(double reprojection_error_px, double d_px) {
+  const double relative = reprojection_error_px / (0.15 * d_px);
+  const double quality = 1.0 / (1.0 + relative * relative);
+  return std::isfinite(quality) ? quality : 0.0;
+}
+
+MouthMeasures measure_mouth(const Landmarks2D& tracked, const FitOutput& fit, const MouthReference& reference) {
+  const MouthRatios image = mouth_ratios<2>(tracked);
+  const MouthRatios projected = mouth_ratios<2>(fit.projected);
+  const MouthRatios model = mouth_ratios<3>(fit.model_landmarks);
+  MouthMeasures m;
+  m.width_2d = image.width;
+  m.height_2d = image.height;
+  m.width_fit = projected.width;
+  m.height_fit = projected.height;
+  m.width_3d = model.width;
+  m.height_3d = model.height;
+  m.protrusion_3d = (fit.model_landmarks(2, ibug::kOuterLipTop) - reference.neutral_upper_lip_z) / model.d;
+  m.quality = fit_quality(fit.reprojection_error_px, image.d);
+  return m;
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,460 @@
+#include "drivers/v4l2_camera.hpp"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <stdexcept>
+#include <system_error>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace lipdrive {
+namespace detail {
+
+/// Owns what an open stream holds in the kernel, and gives it back in reverse order.
+/// Built step by step while opening, so a failure half-way releases exactly what was taken.
+class V4l2Stream {
+ public:
+  struct MappedBuffer {
+    void* data;
+    std::size_t length;
+  };
+
+  V4l2Stream(SystemCalls& system, int fd) : system(system), fd(fd) {}
+  ~V4l2Stream() {
+    if (streaming) {
+      // Fails with ENODEV after an unplug; the buffers are released all the same.
+      v4l2_buf_type type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+      system.ioctl(fd, VIDIOC_STREAMOFF, &type);
+    }
+    for (const MappedBuffer& buffer : buffers) system.munmap(buffer.data, buffer.length);
+    system.close(fd);
+  }
+  V4l2Stream(const V4l2Stream&) = delete;
+  V4l2Stream& operator=(const V4l2Stream&) = delete;
+
+  SystemCalls& system;
+  const int fd;
+  std::vector<MappedBuffer> buffers;
+  bool streaming = false;
+  int held = -1;  // index of the buffer the caller is reading, -1 if none
+};
+
+}  // namespace detail
+
+namespace {
+
+using detail::V4l2Stream;
+
+constexpr std::array kAutoOrder = {PixelFormat::kGrey, PixelFormat::kNv12, PixelFormat::kYuyv,
+                                   PixelFormat::kMjpeg};
+constexpr const char* kByIdDirectory = "/dev/v4l/by-id/";
+
+std::string error_text(int error) { return std::generic_category().message(error); }
+
+/// The errors with which the kernel reports a device that is gone (USB unplug, bridge
+/// reset): everything else mid-stream is a bug that reopening would not fix.
+bool is_disconnect(int error) { return error == ENODEV || error == EIO || error == ENXIO; }
+
+std::uint32_t fourcc_of(PixelFormat format) {
+  switch (format) {
+    case PixelFormat::kGrey: return V4L2_PIX_FMT_GREY;
+    case PixelFormat::kNv12: return V4L2_PIX_FMT_NV12;
+    case PixelFormat::kYuyv: return V4L2_PIX_FMT_YUYV;
+    case PixelFormat::kMjpeg: return V4L2_PIX_FMT_MJPEG;
+    case PixelFormat::kAuto: break;
+  }
+  throw std::logic_error("PixelFormat::kAuto has no fourcc");
+}
+
+std::string fourcc_text(std::uint32_t fourcc) {
+  std::string text;
+  for (int shift = 0; shift < 32; shift += 8) text += static_cast<char>((fourcc >> shift) & 0xff);
+  return text;
+}
+
+std::string fourcc_list(const std::vector<std::uint32_t>& fourccs) {
+  if (fourccs.empty()) return "none";
+  std::string text;
+  for (std::uint32_t fourcc : fourccs) text += (text.empty() ? "" : ", ") + fourcc_text(fourcc);
+  return text;
+}
+
+/// Bytes of one row of the luma plane with no padding, 0 for compressed formats.
+unsigned packed_bytes_per_line(PixelFormat format, unsigned width) {
+  return format == PixelFormat::kYuyv ? 2 * width : format == PixelFormat::kMjpeg ? 0 : width;
+}
+
+/// The fewest bytes a complete frame of the format can have; a driver reporting fewer
+/// delivered a truncated frame.
+std::size_t minimum_image_bytes(const V4l2Negotiated& negotiated) {
+  const std::size_t plane = std::size_t{negotiated.bytes_per_line} * negotiated.height;
+  switch (negotiated.format) {
+    case PixelFormat::kNv12: return plane + plane / 2;  // full-size Y, half-height interleaved UV
+    case PixelFormat::kMjpeg: return 1;
+    default: return plane;
+  }
+}
+
+std::string resolve_device_path(const std::string& device) {
+  return device.find('/') == std::string::npos ? kByIdDirectory + device : device;
+}
+
+/// The steps of opening a stream, sharing the device, its path (for messages) and the
+/// stream that collects the resources.
+class StreamOpener {
+ public:
+  StreamOpener(SystemCalls& system, const std::string& path) : system_(system), path_(path) {}
+
+  std::unique_ptr<V4l2Stream> open(const V4l2Options& options, V4l2Negotiated& negotiated) {
+    // Non-blocking: grab() waits in poll() with its own timeout, and DQBUF never hangs.
+    const int fd = system_.open(path_.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC);
+    if (fd == -1) fail_with_errno("cannot open the device");
+    stream_ = std::make_unique<V4l2Stream>(system_, fd);
+
+    negotiated.card = query_capture_card();
+    negotiated.format = choose_format(options.format);
+    set_format(options, negotiated);
+    negotiated.frame_rate = set_frame_rate(options.frame_rate);
+    negotiated.buffer_count = map_buffers(options.buffer_count);
+    start_streaming();
+    return std::move(stream_);
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& reason) const { throw SourceError(path_ + ": " + reason); }
+
+  /// For a call that just failed: errno is read before anything else can change it.
+  [[noreturn]] void fail_with_errno(const char* what) const {
+    const int error = errno;
+    fail(std::string(what) + ": " + error_text(error));
+  }
+
+  void require(unsigned long request, void* argument, const char* what) {
+    if (system_.ioctl(stream_->fd, request, argument) == -1) fail_with_errno(what);
+  }
+
+  std::string query_capture_card() {
+    v4l2_capability capability{};
+    if (system_.ioctl(stream_->fd, VIDIOC_QUERYCAP, &capability) == -1)
+      fail_with_errno("not a V4L2 device (VIDIOC_QUERYCAP)");
+    // device_caps describes this node; capabilities covers the whole physical device.
+    const std::uint32_t caps = (capability.capabilities & V4L2_CAP_DEVICE_CAPS)
+                                   ? capability.device_caps
+                                   : capability.capabilities;
+    if (!(caps & V4L2_CAP_VIDEO_CAPTURE))
+      fail((caps & V4L2_CAP_VIDEO_CAPTURE_MPLANE)
+               ? "is a multi-planar capture device, which is not supported"
+               : "is not a video capture device");
+    if (!(caps & V4L2_CAP_STREAMING)) fail("does not support streaming I/O");
+    return reinterpret_cast<const char*>(capability.card);
+  }
+
+  std::vector<std::uint32_t> offered_formats() {
+    std::vector<std::uint32_t> fourccs;
+    v4l2_fmtdesc description{};
+    description.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    while (system_.ioctl(stream_->fd, VIDIOC_ENUM_FMT, &description) == 0) {
+      fourccs.push_back(description.pixelformat);
+      ++description.index;
+    }
+    return fourccs;
+  }
+
+  PixelFormat choose_format(PixelFormat preference) {
+    const std::vector<std::uint32_t> offered = offered_formats();
+    const auto is_offered = [&](PixelFormat format) {
+      return std::ranges::find(offered, fourcc_of(format)) != offered.end();
+    };
+    if (preference != PixelFormat::kAuto) {
+      if (!is_offered(preference))
+        fail("does not offer pixel format " + std::string(pixel_format_name(preference)) +
+             " (offers: " + fourcc_list(offered) + ")");
+      return preference;
+    }
+    const auto chosen = std::ranges::find_if(kAutoOrder, is_offered);
+    if (chosen == kAutoOrder.end())
+      fail("offers none of GREY, NV12, YUYV, MJPEG (offers: " + fourcc_list(offered) + ")");
+    return *chosen;
+  }
+
+  void set_format(const V4l2Options& options, V4l2Negotiated& negotiated) {
+    v4l2_format format{};
+    format.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    require(VIDIOC_G_FMT, &format, "VIDIOC_G_FMT");
+    v4l2_pix_format& pix = format.fmt.pix;
+    pix.pixelformat = fourcc_of(negotiated.format);
+    if (options.width) pix.width = options.width;
+    if (options.height) pix.height = options.height;
+    pix.field = V4L2_FIELD_NONE;
+    pix.bytesperline = 0;  // let the driver choose its row alignment
+    require(VIDIOC_S_FMT, &format, "VIDIOC_S_FMT");
+    // Drivers adjust size silently (nearest supported); a changed format is a refusal.
+    if (pix.pixelformat != fourcc_of(negotiated.format))
+      fail("switched the pixel format to " + fourcc_text(pix.pixelformat) + " instead of " +
+           std::string(pixel_format_name(negotiated.format)));
+    if (pix.width == 0 || pix.height == 0) fail("negotiated an empty image size");
+    negotiated.width = pix.width;
+    negotiated.height = pix.height;
+    negotiated.bytes_per_line =
+        std::max(pix.bytesperline, packed_bytes_per_line(negotiated.format, pix.width));
+    negotiated.image_size = pix.sizeimage;
+  }
+
+  /// Frame rate is the inverse of VIDIOC_S_PARM's timeperframe; the driver writes back the
+  /// interval it chose. Drivers without interval control refuse S_PARM: report their rate.
+  double set_frame_rate(double requested) {
+    v4l2_streamparm parameters{};
+    parameters.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    v4l2_fract& interval = parameters.parm.capture.timeperframe;
+    bool known = false;
+    if (requested > 0) {
+      interval = {1000, static_cast<std::uint32_t>(std::lround(requested * 1000))};
+      known = system_.ioctl(stream_->fd, VIDIOC_S_PARM, &parameters) == 0;
+    }
+    if (!known) known = system_.ioctl(stream_->fd, VIDIOC_G_PARM, &parameters) == 0;
+    return known && interval.numerator ? double(interval.denominator) / interval.numerator : 0;
+  }
+
+  unsigned map_buffers(unsigned wanted) {
+    v4l2_requestbuffers request{};
+    // Two at least: the caller reads one while the driver fills another.
+    request.count = std::max(wanted, 2u);
+    request.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    request.memory = V4L2_MEMORY_MMAP;
+    require(VIDIOC_REQBUFS, &request, "VIDIOC_REQBUFS (memory-mapped streaming)");
+    if (request.count < 2)
+      fail("granted " + std::to_string(request.count) + " buffer(s), at least 2 are needed");
+    for (unsigned index = 0; index < request.count; ++index) {
+      v4l2_buffer buffer{};
+      buffer.index = index;
+      buffer.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+      buffer.memory = V4L2_MEMORY_MMAP;
+      require(VIDIOC_QUERYBUF, &buffer, "VIDIOC_QUERYBUF");
+      void* data = system_.mmap(nullptr, buffer.length, PROT_READ | PROT_WRITE, MAP_SHARED,
+                                stream_->fd, buffer.m.offset);
+      if (data == MAP_FAILED) fail_with_errno("mmap of a capture buffer");
+      stream_->buffers.push_back({data, buffer.length});
+    }
+    return request.count;
+  }
+
+  void start_streaming() {
+    for (unsigned index = 0; index < stream_->buffers.size(); ++index) {
+      v4l2_buffer buffer{};
+      buffer.index = index;
+      buffer.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+      buffer.memory = V4L2_MEMORY_MMAP;
+      require(VIDIOC_QBUF, &buffer, "VIDIOC_QBUF");
+    }
+    v4l2_buf_type type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    require(VIDIOC_STREAMON, &type, "VIDIOC_STREAMON");
+    stream_->streaming = true;
+  }
+
+  SystemCalls& system_;
+  const std::string& path_;
+  std::unique_ptr<V4l2Stream> stream_;
+};
+
+/// CLOCK_MONOTONIC nanoseconds of the capture: the driver's timestamp when it says it is
+/// monotonic, else the dequeue time (the best bound left).
+std::int64_t capture_time_ns(const v4l2_buffer& buffer) {
+  if ((buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
+    return std::int64_t{buffer.timestamp.tv_sec} * 1'000'000'000 +
+           std::int64_t{buffer.timestamp.tv_usec} * 1'000;
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
+}
+
+int milliseconds_until(std::chrono::steady_clock::time_point deadline) {
+  const auto left =
+      std::chrono::ceil<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+  return static_cast<int>(std::max<std::chrono::milliseconds::rep>(left.count(), 0));
+}
+
+}  // namespace
+
+PixelFormat parse_pixel_format(std::string_view name) {
+  std::string upper(name);
+  for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  for (PixelFormat format : {PixelFormat::kAuto, PixelFormat::kGrey, PixelFormat::kNv12,
+                             PixelFormat::kYuyv, PixelFormat::kMjpeg}) {
+    std::string known(pixel_format_name(format));
+    for (char& c : known) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (upper == known) return format;
+  }
+  throw std::invalid_argument("unknown pixel format '" + std::string(name) +
+                              "' (expected auto, GREY, NV12, YUYV or MJPEG)");
+}
+
+std::string_view pixel_format_name(PixelFormat format) {
+  switch (format) {
+    case PixelFormat::kAuto: return "auto";
+    case PixelFormat::kGrey: return "GREY";
+    case PixelFormat::kNv12: return "NV12";
+    case PixelFormat::kYuyv: return "YUYV";
+    case PixelFormat::kMjpeg: return "MJPEG";
+  }
+  return "?";
+}
+
+V4l2Camera::V4l2Camera(V4l2Options options, SystemCalls& system)
+    : options_(std::move(options)), system_(system), path_(resolve_device_path(options_.device)) {
+  start_stream();
+}
+
+V4l2Camera::~V4l2Camera() = default;
+
+void V4l2Camera::start_stream() {
+  // Negotiated into a copy: a failed reopen leaves the last stream's description intact.
+  V4l2Negotiated negotiated;
+  stream_ = StreamOpener(system_, path_).open(options_, negotiated);
+  negotiated_ = std::move(negotiated);
+  stream_started_ = false;
+  // YUYV's luma plane is gathered here, allocated once per stream.
+  if (negotiated_.format == PixelFormat::kYuyv)
+    luma_.create(static_cast<int>(negotiated_.height), static_cast<int>(negotiated_.width), CV_8UC1);
+  else
+    luma_.release();
+}
+
+GrabStatus V4l2Camera::grab(Frame& frame, std::chrono::milliseconds timeout) {
+  const Clock::time_point deadline = Clock::now() + timeout;
+  if (!stream_ && !reconnect_before(deadline)) return GrabStatus::kDisconnected;
+
+  // The previous frame's buffer goes back to the driver only now: the caller was reading it.
+  if (stream_->held != -1) {
+    v4l2_buffer buffer{};
+    buffer.index = static_cast<std::uint32_t>(stream_->held);
+    buffer.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    buffer.memory = V4L2_MEMORY_MMAP;
+    if (system_.ioctl(stream_->fd, VIDIOC_QBUF, &buffer) == -1) return fail(errno, "VIDIOC_QBUF");
+    stream_->held = -1;
+  }
+
+  pollfd ready{stream_->fd, POLLIN, 0};
+  const int count = system_.poll(&ready, 1, milliseconds_until(deadline));
+  if (count == -1) return fail(errno, "poll");
+  if (count == 0) return GrabStatus::kTimeout;
+  if (ready.revents & (POLLERR | POLLHUP | POLLNVAL)) {
+    disconnect();
+    return GrabStatus::kDisconnected;
+  }
+
+  v4l2_buffer buffer{};
+  buffer.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  buffer.memory = V4L2_MEMORY_MMAP;
+  if (system_.ioctl(stream_->fd, VIDIOC_DQBUF, &buffer) == -1) return fail(errno, "VIDIOC_DQBUF");
+  if (buffer.index >= stream_->buffers.size())
+    throw SourceError(path_ + ": VIDIOC_DQBUF returned a buffer that was never allocated");
+  stream_->held = static_cast<int>(buffer.index);
+  return deliver(buffer, frame);
+}
+
+GrabStatus V4l2Camera::deliver(const v4l2_buffer& buffer, Frame& frame) {
+  const std::uint64_t sequence = sequence_for(buffer.sequence);
+  const bool complete = !(buffer.flags & V4L2_BUF_FLAG_ERROR) &&
+                        buffer.bytesused >= minimum_image_bytes(negotiated_) &&
+                        buffer.bytesused <= stream_->buffers[buffer.index].length;
+  const cv::Mat gray =
+      complete ? luma_of(stream_->buffers[buffer.index].data, buffer.bytesused) : cv::Mat();
+  if (gray.empty()) {
+    ++counters_.corrupt;
+    return GrabStatus::kCorrupt;
+  }
+  frame.gray = gray;
+  frame.capture_time_ns = capture_time_ns(buffer);
+  if (first_capture_ns_ < 0) first_capture_ns_ = frame.capture_time_ns;
+  frame.sequence = sequence;
+  frame.media_time_s = double(frame.capture_time_ns - first_capture_ns_) * 1e-9;
+  frame.source = path_;
+  ++counters_.delivered;
+  return GrabStatus::kFrame;
+}
+
+std::uint64_t V4l2Camera::sequence_for(std::uint32_t driver_sequence) {
+  if (stream_started_) {
+    // Unsigned difference: the driver's 32-bit counter may wrap; a step back (a driver
+    // bug) is not counted as a drop.
+    const std::uint32_t gap = driver_sequence - expected_driver_sequence_;
+    if (gap < (1u << 31)) {
+      counters_.dropped += gap;
+      next_sequence_ += gap;
+    }
+  }
+  stream_started_ = true;
+  expected_driver_sequence_ = driver_sequence + 1;
+  return next_sequence_++;
+}
+
+cv::Mat V4l2Camera::luma_of(const void* data, std::uint32_t bytes_used) {
+  const int width = static_cast<int>(negotiated_.width);
+  const int height = static_cast<int>(negotiated_.height);
+  void* pixels = const_cast<void*>(data);  // cv::Mat has no const header; nothing writes to it
+  switch (negotiated_.format) {
+    case PixelFormat::kGrey:
+    case PixelFormat::kNv12:  // the Y plane comes first, full size
+      return cv::Mat(height, width, CV_8UC1, pixels, negotiated_.bytes_per_line);
+    case PixelFormat::kYuyv:  // Y0 U Y1 V: luma is channel 0 of two-channel pixels
+      cv::extractChannel(cv::Mat(height, width, CV_8UC2, pixels, negotiated_.bytes_per_line),
+                         luma_, 0);
+      return luma_;
+    case PixelFormat::kMjpeg:
+      // A fresh image per frame: imdecode into an existing Mat leaves it untouched when the
+      // data is not a JPEG at all, which would pass a stale frame off as new.
+      return cv::imdecode(cv::Mat(1, static_cast<int>(bytes_used), CV_8UC1, pixels),
+                          cv::IMREAD_GRAYSCALE);
+    case PixelFormat::kAuto: break;
+  }
+  throw std::logic_error("stream without a concrete pixel format");
+}
+
+GrabStatus V4l2Camera::fail(int error, const char* call) {
+  if (error == EAGAIN || error == EINTR) return GrabStatus::kTimeout;
+  if (is_disconnect(error)) {
+    disconnect();
+    return GrabStatus::kDisconnected;
+  }
+  throw SourceError(path_ + ": " + call + " failed: " + error_text(error));
+}
+
+void V4l2Camera::disconnect() {
+  stream_.reset();
+  ++counters_.disconnects;
+  reconnect_delay_ = options_.reconnect_initial;
+  next_reconnect_ = Clock::now() + reconnect_delay_;
+}
+
+bool V4l2Camera::reconnect_before(Clock::time_point deadline) {
+  if (next_reconnect_ > deadline) {
+    // Waiting out the timeout keeps a caller that loops on grab() from spinning.
+    std::this_thread::sleep_until(deadline);
+    return false;
+  }
+  std::this_thread::sleep_until(next_reconnect_);
+  try {
+    start_stream();
+  } catch (const SourceError& error) {
+    reconnect_error_ = error.what();
+    reconnect_delay_ = std::min(2 * reconnect_delay_, options_.reconnect_max);
+    next_reconnect_ = Clock::now() + reconnect_delay_;
+    return false;
+  }
+  reconnect_error_.clear();
+  ++counters_.reconnects;
+  return true;
+}
+
+}  // namespace lipdrive

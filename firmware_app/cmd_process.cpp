@@ -1,0 +1,283 @@
+// `lipdrive process INPUT`: the offline pipeline over a recording (video, image or folder
+// of images): landmarks -> 3DMM fit -> mouth measures, one CSV row per frame.
+//
+// A second thread decodes ahead into a small ring of preallocated luma buffers, so decoding
+// overlaps tracking and fitting on a 2-core board; rows still come out in frame order.
+#include "firmware_app/command_error.hpp"
+#include "firmware_app/commands.hpp"
+#include "firmware_app/frame_processor.hpp"
+#include "firmware_app/model_files.hpp"
+#include "firmware_app/paths.hpp"
+#include "firmware_app/predictor_file.hpp"
+#include "sim/simulated_camera.hpp"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+struct ProcessOptions {
+  std::filesystem::path input;
+  std::filesystem::path out;  // empty: stdout
+  std::filesystem::path model;
+  std::string landmark_set = "F4";
+  std::filesystem::path predictor = kDefaultPredictorPath;
+  bool include_landmarks = false;
+  bool stats = false;
+};
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+/// What the decoder thread hands over, one slot of the ring.
+struct DecodedFrame {
+  enum class Kind { kFrame, kCorrupt, kEnd, kError };
+  Kind kind = Kind::kEnd;
+  cv::Mat gray;  // reused: copyTo keeps the buffer while the frame size stays the same
+  std::uint64_t sequence = 0;
+  double media_time_s = 0;
+  std::string source;
+  std::string error;  // kCorrupt, kError
+  double decode_ms = 0;
+};
+
+/// A bounded single-producer, single-consumer queue of preallocated frames. The decoder
+/// fills the slot after the last full one; the consumer reads the oldest full slot.
+class FrameRing {
+ public:
+  explicit FrameRing(std::size_t slots) : slots_(slots) {}
+
+  /// Producer: the next free slot, waiting while all are full; nullptr once closed.
+  DecodedFrame* free_slot() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return closed_ || full_ < slots_.size(); });
+    return closed_ ? nullptr : &slots_[(head_ + full_) % slots_.size()];
+  }
+  void publish() {
+    { std::lock_guard lock(mutex_); ++full_; }
+    changed_.notify_all();
+  }
+  /// Consumer: the oldest full slot, waiting while none is.
+  DecodedFrame& oldest() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return full_ > 0; });
+    return slots_[head_];
+  }
+  void release() {
+    {
+      std::lock_guard lock(mutex_);
+      head_ = (head_ + 1) % slots_.size();
+      --full_;
+    }
+    changed_.notify_all();
+  }
+  /// Consumer: stop the producer (it returns from free_slot with nullptr).
+  void close() {
+    { std::lock_guard lock(mutex_); closed_ = true; }
+    changed_.notify_all();
+  }
+
+ private:
+  std::vector<DecodedFrame> slots_;
+  std::size_t head_ = 0, full_ = 0;
+  bool closed_ = false;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+};
+
+void decode_all(SimulatedCamera& camera, FrameRing& ring) {
+  Frame frame;
+  for (;;) {
+    DecodedFrame* slot = ring.free_slot();
+    if (!slot) return;
+    const auto start = Clock::now();
+    try {
+      GrabStatus status;
+      do status = camera.grab(frame, std::chrono::milliseconds(1000));
+      while (status == GrabStatus::kTimeout);
+      switch (status) {
+        case GrabStatus::kFrame:
+          slot->kind = DecodedFrame::Kind::kFrame;
+          frame.gray.copyTo(slot->gray);
+          slot->sequence = frame.sequence;
+          slot->media_time_s = frame.media_time_s;
+          slot->source.assign(frame.source);
+          break;
+        case GrabStatus::kCorrupt:
+          slot->kind = DecodedFrame::Kind::kCorrupt;
+          slot->error = camera.last_error().value_or("a frame could not be decoded");
+          break;
+        default:
+          slot->kind = DecodedFrame::Kind::kEnd;
+      }
+    } catch (const std::exception& e) {
+      slot->kind = DecodedFrame::Kind::kError;
+      slot->error = e.what();
+    }
+    slot->decode_ms = ms_since(start);
+    const bool last = slot->kind == DecodedFrame::Kind::kEnd || slot->kind == DecodedFrame::Kind::kError;
+    ring.publish();
+    if (last) return;
+  }
+}
+
+/// Per-stage latencies for --stats.
+struct StageTimes {
+  std::vector<double> decode, landmarks, fit, measures;
+};
+
+double percentile(std::vector<double> values, double p) {
+  if (values.empty()) return std::nan("");
+  // Nearest rank: the smallest value with at least p of the values at or below it.
+  const auto rank = static_cast<std::size_t>(std::ceil(p * static_cast<double>(values.size())));
+  const std::size_t k = std::max<std::size_t>(rank, 1) - 1;
+  std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
+  return values[k];
+}
+
+void print_stats(const StageTimes& times, std::size_t frames, double seconds) {
+  fmt::print(stderr, "{:<10} {:>10} {:>10} {:>8}\n", "stage", "median ms", "p99 ms", "frames");
+  const auto line = [](const char* name, const std::vector<double>& v) {
+    fmt::print(stderr, "{:<10} {:>10.3f} {:>10.3f} {:>8}\n", name, percentile(v, 0.5), percentile(v, 0.99), v.size());
+  };
+  line("decode", times.decode);
+  line("landmarks", times.landmarks);
+  line("fit", times.fit);
+  line("measures", times.measures);
+  fmt::print(stderr, "{} frames in {:.3f} s: {:.1f} frames/s (after loading)\n", frames, seconds,
+             static_cast<double>(frames) / seconds);
+}
+
+SimulatedCamera open_input(const std::filesystem::path& input) {
+  std::error_code ec;
+  if (!std::filesystem::exists(input, ec))
+    throw CommandError(fmt::format("{}: no such file or folder", input.string()), kExitNoInput);
+  if (::access(input.c_str(), R_OK | (std::filesystem::is_directory(input, ec) ? X_OK : 0)) != 0)
+    throw CommandError(fmt::format("{}: permission denied", input.string()), kExitNoInput);
+  SimulatedCameraOptions options;  // as fast as possible, no looping
+  options.input = input;
+  try {
+    return SimulatedCamera(options);
+  } catch (const SourceError& e) {
+    throw CommandError(e.what(), kExitDataError);
+  }
+}
+
+void run_process(const ProcessOptions& options) {
+  const auto set = parse_landmark_set(options.landmark_set);
+  const auto model_path = options.model.empty() ? default_model_path() : options.model;
+  SimulatedCamera camera = open_input(options.input);
+  const MorphableModel model = load_model_file(model_path);
+  auto predictor = load_predictor_file(options.predictor);
+  std::optional<FrameProcessor> processor;
+  try {
+    processor.emplace(model, *set, FitSettings{}, std::move(predictor));
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(fmt::format("{}: {}", model_path.string(), e.what()), kExitDataError);
+  }
+
+  std::ofstream file;
+  if (!options.out.empty()) {
+    std::error_code ec;
+    if (options.out.has_parent_path()) std::filesystem::create_directories(options.out.parent_path(), ec);
+    file.open(options.out, std::ios::binary | std::ios::trunc);
+    if (!file) throw CommandError(fmt::format("{}: cannot open for writing", options.out.string()));
+  }
+  std::ostream& out = options.out.empty() ? std::cout : file;
+  out << measures_csv_header(options.include_landmarks) << '\n';
+
+  const bool progress = ::isatty(STDERR_FILENO) == 1;
+  StageTimes times;
+  std::size_t rows = 0, tracked_rows = 0;
+  std::optional<std::string> decode_error;
+  fmt::memory_buffer row;
+
+  const auto start = Clock::now();
+  FrameRing ring(4);
+  std::thread decoder(decode_all, std::ref(camera), std::ref(ring));
+  // Stops and joins the decoder however this scope is left.
+  const auto stop_decoder = [&](std::thread* t) { ring.close(); t->join(); };
+  const std::unique_ptr<std::thread, decltype(stop_decoder)> decoder_guard(&decoder, stop_decoder);
+
+  for (;;) {
+    DecodedFrame& frame = ring.oldest();
+    if (frame.kind == DecodedFrame::Kind::kEnd) break;
+    if (frame.kind == DecodedFrame::Kind::kError) {
+      decode_error = frame.error;
+      break;
+    }
+    if (frame.kind == DecodedFrame::Kind::kCorrupt) {
+      decode_error = frame.error;
+      ring.release();
+      continue;
+    }
+    times.decode.push_back(frame.decode_ms);
+    const FrameMeasurement& result = processor->process(frame.gray);
+    times.landmarks.push_back(result.landmarks_ms);
+    if (!std::isnan(result.fit_ms)) times.fit.push_back(result.fit_ms);
+    if (result.tracked) times.measures.push_back(result.measures_ms);
+    row.clear();
+    append_measures_csv_row(row, {frame.sequence, frame.media_time_s, frame.source},
+                            result.tracked ? &result.measures : nullptr,
+                            options.include_landmarks ? &result.landmarks : nullptr);
+    row.push_back('\n');
+    out.write(row.data(), static_cast<std::streamsize>(row.size()));
+    ++rows;
+    tracked_rows += result.tracked;
+    ring.release();
+    if (progress && rows % 10 == 0)
+      fmt::print(stderr, "\r{} frames, {} tracked, {:.0f} frames/s ", rows, tracked_rows,
+                 static_cast<double>(rows) / (ms_since(start) / 1000));
+  }
+  const double seconds = ms_since(start) / 1000;
+  if (progress) fmt::print(stderr, "\r{} frames, {} tracked{:20}\n", rows, tracked_rows, "");
+  out.flush();
+  if (!out) throw CommandError(fmt::format("{}: write failed", options.out.empty() ? "stdout" : options.out.string()));
+  if (options.stats) print_stats(times, rows, seconds);
+
+  const std::string input = options.input.string();
+  if (decode_error)
+    throw CommandError(fmt::format("{}: decoding failed after {} frames: {}", input, rows, *decode_error),
+                       kExitDataError);
+  if (rows == 0) throw CommandError(fmt::format("{}: no frames to process", input), kExitDataError);
+  if (tracked_rows == 0)
+    throw CommandError(fmt::format("{}: no face found in any of the {} frames", input, rows), kExitDataError);
+}
+
+}  // namespace
+
+void add_process_command(CLI::App& app) {
+  auto options = std::make_shared<ProcessOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "process", "Landmarks, 3DMM fit and mouth measures for every frame of a video, image or folder of images");
+  cmd->add_option("INPUT", options->input, "video file, image, or folder of images")->required();
+  cmd->add_option("--out", options->out, "CSV output file (default: stdout)");
+  cmd->add_option("--model", options->model, "morphable model (.lpm; default: the built-in default model)");
+  cmd->add_option("--landmark-set", options->landmark_set, "landmarks used by the fit (DESIGN.md 4.1)")
+      ->check(CLI::IsMember({"F1", "F2", "F3", "F4", "F5"}))
+      ->capture_default_str();
+  cmd->add_option("--predictor", options->predictor, "dlib 68-point shape predictor (.dat)")->capture_default_str();
+  cmd->add_flag("--include-landmarks", options->include_landmarks, "add the tracked landmarks x0..x67,y0..y67");
+  cmd->add_flag("--stats", options->stats, "print per-stage latency and frames per second on stderr");
+  cmd->callback([options] { run_process(*options); });
+}
+
+}  // namespace lipdrive

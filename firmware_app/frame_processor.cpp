@@ -1,0 +1,78 @@
+#include "firmware_app/frame_processor.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <iterator>
+
+namespace lipdrive {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+std::string csv_field(std::string_view text) {
+  if (text.find_first_of(",\"\n") == std::string_view::npos) return std::string(text);
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + '"';
+}
+
+}  // namespace
+
+FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
+                               std::shared_ptr<const ShapePredictorData> predictor)
+    : fitter_(model, set, settings), reference_(mouth_reference(model)), tracker_(std::move(predictor)) {}
+
+const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
+  FrameMeasurement& r = result_;
+  r.tracked = false;
+  r.fit_ms = r.measures_ms = std::nan("");
+  auto start = Clock::now();
+  const TrackStatus status = tracker_.track(gray, r.landmarks);
+  r.landmarks_ms = ms_since(start);
+  if (status == TrackStatus::kNoFace) return r;
+  // A newly acquired face may be another pose entirely: do not warm-start from the old one.
+  if (status == TrackStatus::kAcquired) fit_ = Fitter::initial_output();
+  start = Clock::now();
+  fitter_.fit(r.landmarks, fit_);
+  r.fit_ms = ms_since(start);
+  if (!tracker_.check_fit(r.landmarks, fit_.reprojection_error_px)) return r;
+  start = Clock::now();
+  r.measures = measure_mouth(r.landmarks, fit_, reference_);
+  r.measures_ms = ms_since(start);
+  r.tracked = true;
+  return r;
+}
+
+std::string measures_csv_header(bool include_landmarks) {
+  std::string header =
+      "frame,time_s,source,tracked,quality,width_2d,height_2d,width_fit,height_fit,width_3d,height_3d,protrusion_3d";
+  if (include_landmarks) {
+    for (int i = 0; i < kNumLandmarks; ++i) header += fmt::format(",x{}", i);
+    for (int i = 0; i < kNumLandmarks; ++i) header += fmt::format(",y{}", i);
+  }
+  return header;
+}
+
+void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, const MouthMeasures* measures,
+                             const Landmarks2D* landmarks) {
+  fmt::format_to(std::back_inserter(row), "{},{:.4f},{},", key.frame, key.time_s, csv_field(key.source));
+  if (measures) {
+    const MouthMeasures& m = *measures;
+    fmt::format_to(std::back_inserter(row), "1,{:.4f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}", m.quality,
+                   m.width_2d, m.height_2d, m.width_fit, m.height_fit, m.width_3d, m.height_3d, m.protrusion_3d);
+  } else {
+    fmt::format_to(std::back_inserter(row), "0,,,,,,,,");
+  }
+  if (!landmarks) return;
+  for (int axis = 0; axis < 2; ++axis)
+    for (int i = 0; i < kNumLandmarks; ++i) {
+      if (measures) fmt::format_to(std::back_inserter(row), ",{:.3f}", (*landmarks)(axis, i));
+      else row.push_back(',');
+    }
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,48 @@
+// GRID corpus word alignments (.align): one "start end word" line per word, times
+// in 1/25000 s, so 1000 units are one 25 fps video frame; "sil" and "sp" are silence.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <set>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace lipdrive {
+
+inline constexpr long kAlignUnitsPerFrame = 1000;  // 25000 units/s at 25 frames/s
+
+struct AlignedWord {
+  long start = 0;  // inclusive, align units
+  long end = 0;    // exclusive, align units; end > start
+  std::string word;
+};
+
+/// Inclusive range of video frames.
+struct FrameRange {
+  int first = 0;
+  int last = 0;
+};
+
+/// Reads a .align file. Throws CommandError: kExitNoInput when it cannot be opened,
+/// kExitDataError naming file and line for a malformed line (not three fields,
+/// a time that is not a non-negative integer, end not after start).
+std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path);
+
+bool is_silence(const AlignedWord& word);
+
+/// The frames whose time span [f, f+1) × 1000 units overlaps the word's span, so a
+/// frame that is only partly inside the word still counts: the lips move ahead of
+/// the sound, and an overlap rule never drops a short word.
+FrameRange frame_range(const AlignedWord& word);
+
+/// Frames overlapping any non-silence word.
+std::set<int> speech_frames(std::span<const AlignedWord> words);
+
+/// The frame range of the first occurrence of `word`, or nullopt when absent.
+std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words,
+                                           std::string_view word);
+
+}  // namespace lipdrive

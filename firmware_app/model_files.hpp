@@ -1,0 +1,45 @@
+// Model, mesh and landmark-map files on disk. Every error names the file; the
+// pure byte format lives in core/model_format.hpp.
+#pragma once
+
+#include "core/landmarks.hpp"
+#include "core/morphable_model.hpp"
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+
+namespace lipdrive {
+
+/// Reads a .lpm model file. Throws CommandError: kExitNoInput when the file is
+/// missing or unreadable, kExitDataError (with the ModelFormatError text) when invalid.
+MorphableModel load_model_file(const std::filesystem::path& path);
+
+/// Writes a .lpm model file through a temporary file and a rename, so a reader
+/// never sees a half-written model.
+void save_model_file(const std::filesystem::path& path, const MorphableModel& model);
+
+/// Reads a Wavefront OBJ with triangulated faces only (tinyobjloader); all
+/// shapes are concatenated in file order.
+Mesh read_obj(const std::filesystem::path& path);
+
+/// Writes "v x y z" and "f a b c" (1-based) lines with enough digits to
+/// round-trip every float exactly.
+void write_obj(const std::filesystem::path& path, const Mesh& mesh);
+
+/// Landmark map file (TOML):
+///
+///   # iBUG-68 landmark index -> 0-based vertex index in the pose meshes
+///   [landmarks]
+///   0 = 1234
+///   1 = 1240
+///   ...
+///
+/// Keys are iBUG indices 0..67; a missing key means "unmapped" (-1).
+std::array<std::int32_t, kNumLandmarks> read_landmark_map(const std::filesystem::path& path);
+
+/// Writes the format read_landmark_map reads; unmapped (-1) landmarks are omitted.
+void write_landmark_map(const std::filesystem::path& path,
+                        const std::array<std::int32_t, kNumLandmarks>& landmark_vertex);
+
+}  // namespace lipdrive

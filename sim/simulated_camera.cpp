@@ -1,0 +1,223 @@
+#include "sim/simulated_camera.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <ctime>
+#include <system_error>
+
+namespace lipdrive {
+namespace {
+
+std::int64_t monotonic_now_ns() {
+  timespec now{};
+  ::clock_gettime(CLOCK_MONOTONIC, &now);
+  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
+}
+
+// Sleeping to an absolute deadline (not for a duration) keeps the replay from drifting.
+void sleep_until_ns(std::int64_t deadline_ns) {
+  const timespec deadline{static_cast<time_t>(deadline_ns / 1'000'000'000),
+                          static_cast<long>(deadline_ns % 1'000'000'000)};
+  while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
+  }
+}
+
+std::string lower_case(std::string text) {
+  std::ranges::transform(text, text.begin(), [](unsigned char c) { return std::tolower(c); });
+  return text;
+}
+
+std::vector<std::filesystem::path> list_images(const std::filesystem::path& folder) {
+  std::vector<std::filesystem::path> images;
+  try {
+    for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+      if (entry.is_regular_file() && is_image_file_name(entry.path())) images.push_back(entry.path());
+    }
+  } catch (const std::filesystem::filesystem_error& e) {
+    throw SourceError(folder.string() + ": cannot read the folder: " + e.code().message());
+  }
+  if (images.empty())
+    throw SourceError(folder.string() + ": no images (png, jpg, jpeg, bmp, pgm, ppm, tif) in the folder");
+  std::ranges::sort(images, {}, [](const auto& path) { return path.filename().string(); });
+  return images;
+}
+
+// Some decoders hand out gray frames already; the rest are BGR.
+void to_gray(const cv::Mat& decoded, cv::Mat& gray) {
+  if (decoded.channels() == 1)
+    decoded.copyTo(gray);
+  else
+    cv::cvtColor(decoded, gray, decoded.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
+}
+
+}  // namespace
+
+bool is_image_file_name(const std::filesystem::path& path) {
+  static constexpr std::array<std::string_view, 8> kExtensions{".png", ".jpg", ".jpeg", ".bmp",
+                                                               ".pgm", ".ppm", ".tif", ".tiff"};
+  return std::ranges::find(kExtensions, lower_case(path.extension().string())) != kExtensions.end();
+}
+
+SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options) : options_(std::move(options)) {
+  const auto& input = options_.input;
+  std::error_code ec;
+  if (!std::filesystem::exists(input, ec))
+    throw SourceError(input.string() + ": no such file or folder");
+  if (!(options_.image_frame_rate > 0))
+    throw SourceError(input.string() + ": the image frame rate must be positive");
+
+  if (std::filesystem::is_directory(input, ec)) {
+    kind_ = Kind::kImages;
+    images_ = list_images(input);
+  } else if (is_image_file_name(input)) {
+    kind_ = Kind::kImages;
+    images_ = {input};
+    single_image_ = cv::imread(input.string(), cv::IMREAD_GRAYSCALE);
+    if (single_image_.empty()) throw SourceError(input.string() + ": cannot decode the image");
+  } else {
+    kind_ = Kind::kVideo;
+    video_path_ = input.string();
+    open_video();
+  }
+  for (const auto& image : images_) image_names_.push_back(image.filename().string());
+
+  if (kind_ == Kind::kImages) frame_rate_ = options_.image_frame_rate;
+}
+
+void SimulatedCamera::open_video() {
+  if (!capture_.open(video_path_, cv::CAP_FFMPEG))
+    throw SourceError(video_path_ + ": not a video or image that can be decoded");
+  const double fps = capture_.get(cv::CAP_PROP_FPS);
+  frame_rate_ = std::isfinite(fps) && fps > 0 ? fps : options_.image_frame_rate;
+  const double count = capture_.get(cv::CAP_PROP_FRAME_COUNT);
+  expected_frames_ = std::isfinite(count) && count > 0 ? static_cast<std::int64_t>(count) : 0;
+}
+
+std::string SimulatedCamera::describe() const { return "sim:" + options_.input.string(); }
+
+void SimulatedCamera::rewind() {
+  position_ = 0;
+  // Reopening is exact where seeking to frame 0 is not for every codec.
+  if (kind_ == Kind::kVideo) open_video();
+}
+
+bool SimulatedCamera::wait_until_due(std::chrono::milliseconds timeout) const {
+  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
+  const std::int64_t deadline = start_ns_ + static_cast<std::int64_t>(sequence_) * period_ns;
+  const std::int64_t now = monotonic_now_ns();
+  const std::int64_t timeout_ns = std::chrono::nanoseconds(timeout).count();
+  if (deadline - now > timeout_ns) {
+    sleep_until_ns(now + timeout_ns);
+    return false;
+  }
+  sleep_until_ns(deadline);
+  return true;
+}
+
+std::optional<GrabStatus> SimulatedCamera::injected_outage(std::chrono::milliseconds timeout) {
+  if (outage_until_ns_ == 0) return std::nullopt;
+  const std::int64_t timeout_end = monotonic_now_ns() + std::chrono::nanoseconds(timeout).count();
+  if (outage_until_ns_ > timeout_end) {
+    sleep_until_ns(timeout_end);
+    return outage_status_;
+  }
+  sleep_until_ns(outage_until_ns_);
+  outage_until_ns_ = 0;
+  // Resume at the recording's pace from now on, not with a burst of overdue frames.
+  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
+  start_ns_ = monotonic_now_ns() - static_cast<std::int64_t>(sequence_) * period_ns;
+  return std::nullopt;
+}
+
+GrabStatus SimulatedCamera::inject_frame_faults() {
+  const SimulatedCameraOptions::FaultInjection& faults = options_.faults;
+  const std::int64_t n = ++frames_read_;
+  const auto every = [n](int period) { return period > 0 && n % period == 0; };
+  const auto begin_outage = [this](GrabStatus status, std::chrono::milliseconds duration) {
+    outage_status_ = status;
+    outage_until_ns_ = monotonic_now_ns() + std::chrono::nanoseconds(duration).count();
+  };
+  if (n == faults.disconnect_after)
+    begin_outage(GrabStatus::kDisconnected, faults.reconnect);
+  else if (every(faults.stall_every))
+    begin_outage(GrabStatus::kTimeout, faults.stall);
+  // A dropped frame is never seen; the gap in the sequence numbers shows it.
+  if (every(faults.drop_every)) return GrabStatus::kTimeout;
+  if (every(faults.corrupt_every)) {
+    last_error_ = describe() + ": injected fault: frame " + std::to_string(n) + " is corrupt";
+    return GrabStatus::kCorrupt;
+  }
+  return GrabStatus::kFrame;
+}
+
+GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout) {
+  if (ended_) return GrabStatus::kEndOfStream;
+  if (const auto outage = injected_outage(timeout)) return *outage;
+  if (options_.real_time) {
+    if (start_ns_ == 0) start_ns_ = monotonic_now_ns();
+    if (!wait_until_due(timeout)) return GrabStatus::kTimeout;
+  }
+
+  GrabStatus status = read_frame(frame);
+  // position_ > 0: a recording without a single frame must not loop forever.
+  if (status == GrabStatus::kEndOfStream && options_.loop && position_ > 0) {
+    rewind();
+    status = read_frame(frame);
+  }
+  if (status == GrabStatus::kEndOfStream) {
+    ended_ = true;
+    return status;
+  }
+  // A frame that could not be decoded still used up its slot: the sequence gap shows it.
+  frame.sequence = sequence_++;
+  frame.capture_time_ns = monotonic_now_ns();
+  return status == GrabStatus::kFrame ? inject_frame_faults() : status;
+}
+
+GrabStatus SimulatedCamera::read_frame(Frame& frame) {
+  return kind_ == Kind::kVideo ? read_video_frame(frame) : read_image_frame(frame);
+}
+
+GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
+  if (!capture_.read(decoded_) || decoded_.empty()) {
+    if (expected_frames_ > 0 && position_ < expected_frames_) {
+      last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(position_) + " of " +
+                    std::to_string(expected_frames_) + " (the file is damaged or truncated)";
+      ended_ = true;  // nothing after the damage is readable, so the replay ends here
+      return GrabStatus::kCorrupt;
+    }
+    return GrabStatus::kEndOfStream;
+  }
+  to_gray(decoded_, gray_);
+  frame.gray = gray_;
+  frame.media_time_s = static_cast<double>(position_) / frame_rate_;
+  frame.source = video_path_;
+  ++position_;
+  return GrabStatus::kFrame;
+}
+
+GrabStatus SimulatedCamera::read_image_frame(Frame& frame) {
+  if (position_ >= static_cast<std::int64_t>(images_.size())) return GrabStatus::kEndOfStream;
+  const auto index = static_cast<std::size_t>(position_++);
+  frame.media_time_s = static_cast<double>(index) / frame_rate_;
+  frame.source = image_names_[index];
+  if (!single_image_.empty()) {
+    frame.gray = single_image_;
+    return GrabStatus::kFrame;
+  }
+  // imread allocates inside the decoder; nothing else here does once running.
+  gray_ = cv::imread(images_[index].string(), cv::IMREAD_GRAYSCALE);
+  if (gray_.empty()) {
+    last_error_ = images_[index].string() + ": cannot decode the image";
+    return GrabStatus::kCorrupt;
+  }
+  frame.gray = gray_;
+  return GrabStatus::kFrame;
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,98 @@
+// A FrameSource that replays a recording: a video file (OpenCV, FFmpeg backend), a
+// single image, or a folder of images in file-name order. CI and a bench without
+// hardware run the whole pipeline through it (DESIGN.md 6).
+#pragma once
+
+#include "drivers/frame_source.hpp"
+
+#include <opencv2/core/mat.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace lipdrive {
+
+struct SimulatedCameraOptions {
+  /// Faults the replay injects into an otherwise clean recording, so the pipeline's
+  /// handling of a misbehaving camera can be tested without one. 0 disables each fault.
+  /// Counts are of frames the camera would have delivered.
+  struct FaultInjection {
+    int drop_every = 0;        // every Nth frame is skipped (a sequence gap, as a real camera shows)
+    int stall_every = 0;       // the frame after every Nth arrives `stall` late
+    std::chrono::milliseconds stall{0};
+    int disconnect_after = 0;  // after N frames the camera reports kDisconnected for `reconnect`,
+    std::chrono::milliseconds reconnect{0};  // then delivers again (once per replay)
+    int corrupt_every = 0;     // every Nth frame is kCorrupt
+  };
+
+  std::filesystem::path input;   // video file, image file, or folder of images
+  bool real_time = false;        // pace at the recording's frame rate; else as fast as possible
+  bool loop = false;             // restart at the end instead of reporting kEndOfStream
+  double image_frame_rate = 25;  // frames per second for images and folders (and videos without one)
+  FaultInjection faults{};
+};
+
+/// Image file extensions a folder replay picks up (lower case, with the dot).
+bool is_image_file_name(const std::filesystem::path& path);
+
+class SimulatedCamera : public FrameSource {
+ public:
+  /// Opens the input. Throws SourceError naming the path when it is missing, an empty
+  /// or unreadable folder, or a file that is neither a decodable image nor a video.
+  explicit SimulatedCamera(SimulatedCameraOptions options);
+
+  /// Delivers the next frame. A video whose decoding stops before the container's frame
+  /// count yields kCorrupt once (details in last_error()), then ends; an undecodable
+  /// image inside a folder yields kCorrupt for that frame only. In real time, kTimeout
+  /// when the next frame is due later than `timeout`.
+  GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override;
+  double frame_rate() const override { return frame_rate_; }
+  std::string describe() const override;
+
+  /// What went wrong with the most recent kCorrupt, if anything did.
+  const std::optional<std::string>& last_error() const { return last_error_; }
+
+ private:
+  enum class Kind { kVideo, kImages };
+
+  void open_video();
+  void rewind();
+  GrabStatus read_frame(Frame& frame);  // kEndOfStream past the last frame
+  GrabStatus read_video_frame(Frame& frame);
+  GrabStatus read_image_frame(Frame& frame);
+  // Real-time pacing: false (after sleeping `timeout`) when the frame is not due yet.
+  bool wait_until_due(std::chrono::milliseconds timeout) const;
+  // Fault injection: the status while an injected disconnect or stall lasts, else nullopt.
+  std::optional<GrabStatus> injected_outage(std::chrono::milliseconds timeout);
+  // Fault injection on a frame just read: kFrame, or what the fault makes of it.
+  GrabStatus inject_frame_faults();
+
+  SimulatedCameraOptions options_;
+  Kind kind_;
+  std::string video_path_;               // `source` of video frames
+  std::vector<std::filesystem::path> images_;
+  std::vector<std::string> image_names_;  // `source` of image frames (file names)
+  cv::Mat single_image_;                  // a lone image is decoded once, up front
+
+  cv::VideoCapture capture_;
+  double frame_rate_ = 0;
+  std::int64_t expected_frames_ = 0;  // container's frame count, 0 if unknown
+  cv::Mat decoded_;                   // decoder output (BGR), reused across frames
+  cv::Mat gray_;                      // delivered luma plane, reused across frames
+
+  std::int64_t position_ = 0;   // index of the next frame within the recording
+  std::uint64_t sequence_ = 0;  // next sequence number, never reset by looping
+  bool ended_ = false;
+  std::int64_t start_ns_ = 0;  // real-time pacing: deadline of frame n = start + n * period
+  std::int64_t frames_read_ = 0;      // fault injection: frames read from the recording
+  std::int64_t outage_until_ns_ = 0;  // fault injection: end of a disconnect or stall, 0 = none
+  GrabStatus outage_status_ = GrabStatus::kTimeout;
+  std::optional<std::string> last_error_;
+};
+
+}  // namespace lipdrive

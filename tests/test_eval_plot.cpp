@@ -1,0 +1,323 @@
+// The CSV reader, GRID alignments, and the `lipdrive eval` and `lipdrive plot`
+// commands run as a user runs them (the built binary on small files).
+#include "firmware_app/command_error.hpp"
+#include "firmware_app/csv_table.hpp"
+#include "firmware_app/grid_align.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+class EvalPlotTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("lipdrive_" + std::string(test->name()) + "_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path write(const std::string& name, const std::string& text) const {
+    const fs::path path = dir_ / name;
+    std::ofstream(path) << text;
+    return path;
+  }
+
+  /// Runs the lipdrive binary with the given arguments (each single-quoted).
+  RunResult run(const std::vector<std::string>& args) const {
+    std::string command = LIPDRIVE_BINARY;
+    for (const auto& arg : args) command += " '" + arg + "'";
+    const fs::path err_path = dir_ / "stderr.txt";
+    command += " 2>'" + err_path.string() + "'";
+    RunResult result;
+    FILE* pipe = ::popen(command.c_str(), "r");
+    if (pipe == nullptr) return result;
+    char buffer[4096];
+    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;) result.out.append(buffer, n);
+    const int status = ::pclose(pipe);
+    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.err = read_text(err_path);
+    return result;
+  }
+
+  fs::path dir_;
+};
+
+// Ground truth as the fixture generator writes it.
+constexpr const char* kTruthCsv =
+    "frame,time_s,width_2d,height_2d\n"
+    "0,0.00,10,1\n"
+    "1,0.04,12,3\n"
+    "2,0.08,14,5\n"
+    "3,0.12,16,7\n"
+    "4,0.16,18,9\n";
+
+// `lipdrive process` output: frame 0 missing, frame 3 untracked (empty measures),
+// frame 5 not in the truth, a quoted source path. width_2d = truth + 1;
+// height_2d = 7.5 - 0.5 × truth (3, 5, 9 → 6, 5, 3 on the tracked common frames).
+constexpr const char* kPredCsv =
+    "frame,time_s,source,tracked,quality,width_2d,height_2d,width_fit,height_fit,width_3d,"
+    "height_3d,protrusion_3d\n"
+    "1,0.04,\"/takes/take 1.mp4\",1,0.9,13,6,1,1,1,1,1\n"
+    "2,0.08,\"/takes/take 1.mp4\",1,0.9,15,5,1,1,1,1,1\n"
+    "3,0.12,\"/takes/take 1.mp4\",0,0.1,,,,,,,\n"
+    "4,0.16,\"/takes/take 1.mp4\",1,0.9,19,3,1,1,1,1,1\n"
+    "5,0.20,\"/takes/take 1.mp4\",1,0.9,20,2,1,1,1,1,1\n";
+
+const nlohmann::json& column_result(const nlohmann::json& report, const std::string& name) {
+  for (const auto& column : report.at("columns")) {
+    if (column.at("column") == name) return column;
+  }
+  throw std::runtime_error("no result for column " + name);
+}
+
+TEST_F(EvalPlotTest, EvalJsonMatchesHandComputedMetrics) {
+  const auto truth = write("truth.csv", kTruthCsv);
+  const auto pred = write("pred.csv", kPredCsv);
+  const RunResult result = run({"eval", "--truth", truth, "--pred", pred, "--json"});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  const auto report = nlohmann::json::parse(result.out);
+
+  EXPECT_EQ(report.at("frames_matched"), 4);  // frames 1-4
+  ASSERT_EQ(report.at("columns").size(), 2u);  // the measures both files have
+
+  const auto& width = column_result(report, "width_2d");
+  EXPECT_EQ(width.at("n"), 3);  // frame 3 is untracked
+  EXPECT_NEAR(width.at("rmse_scaled").get<double>(), 0, 1e-12);
+  EXPECT_NEAR(width.at("mae").get<double>(), 1, 1e-12);
+  EXPECT_NEAR(width.at("max_abs").get<double>(), 1, 1e-12);
+  EXPECT_NEAR(width.at("pearson_r").get<double>(), 1, 1e-12);
+  EXPECT_NEAR(width.at("std_ratio").get<double>(), 1, 1e-12);
+
+  // Truth 3, 5, 9 scales to 0, 1/3, 1; output 6, 5, 3 to 1, 2/3, 0.
+  const auto& height = column_result(report, "height_2d");
+  EXPECT_EQ(height.at("n"), 3);
+  EXPECT_NEAR(height.at("rmse_scaled").get<double>(), std::sqrt((1 + 1.0 / 9 + 1) / 3), 1e-12);
+  EXPECT_NEAR(height.at("mae").get<double>(), (3 + 0 + 6) / 3.0, 1e-12);
+  EXPECT_NEAR(height.at("max_abs").get<double>(), 6, 1e-12);
+  EXPECT_NEAR(height.at("pearson_r").get<double>(), -1, 1e-12);
+  EXPECT_NEAR(height.at("std_ratio").get<double>(), 0.5, 1e-12);
+}
+
+TEST_F(EvalPlotTest, EvalWithAlignmentScoresOnlySpeechFrames) {
+  const auto truth = write("truth.csv", kTruthCsv);
+  const auto pred = write("pred.csv", kPredCsv);
+  // Speech spans frames 2 and 3 only; frame 3 is untracked.
+  const auto align = write("take.align", "0 2000 sil\n2000 4000 bin\n4000 6000 sp\n");
+  const RunResult result = run({"eval", "--truth", truth, "--pred", pred, "--align", align,
+                                "--columns", "width_2d", "--json"});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  const auto report = nlohmann::json::parse(result.out);
+  EXPECT_EQ(report.at("frames_matched"), 2);
+  ASSERT_EQ(report.at("columns").size(), 1u);
+  const auto& width = column_result(report, "width_2d");
+  EXPECT_EQ(width.at("n"), 1);
+  EXPECT_NEAR(width.at("mae").get<double>(), 1, 1e-12);
+  EXPECT_TRUE(width.at("pearson_r").is_null());  // one pair: no correlation
+}
+
+TEST_F(EvalPlotTest, EvalComparesTwoProcessOutputsAsATable) {
+  const auto a = write("a.csv", kPredCsv);
+  const auto b = write("b.csv", kPredCsv);
+  const RunResult result = run({"eval", "--truth", a, "--pred", b});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_THAT(result.out, HasSubstr("rmse_scaled"));
+  // All seven measures of the process output, each on its 4 tracked frames.
+  for (const char* column : {"width_2d", "height_2d", "width_fit", "height_fit", "width_3d",
+                             "height_3d", "protrusion_3d"}) {
+    EXPECT_THAT(result.out, HasSubstr(column));
+  }
+  EXPECT_THAT(result.out, HasSubstr("5 frames matched"));
+}
+
+TEST_F(EvalPlotTest, EvalErrorsNameTheProblem) {
+  const auto truth = write("truth.csv", kTruthCsv);
+  const auto pred = write("pred.csv", kPredCsv);
+
+  const RunResult missing_file = run({"eval", "--truth", (dir_ / "nope.csv").string(), "--pred", pred});
+  EXPECT_EQ(missing_file.exit_code, 66);
+  EXPECT_THAT(missing_file.err, HasSubstr("nope.csv"));
+
+  const RunResult missing_column =
+      run({"eval", "--truth", truth, "--pred", pred, "--columns", "lip_gloss"});
+  EXPECT_EQ(missing_column.exit_code, 65);
+  EXPECT_THAT(missing_column.err, HasSubstr("lip_gloss"));
+
+  const auto later = write("later.csv", "frame,width_2d,height_2d\n10,1,1\n11,2,2\n");
+  const RunResult disjoint = run({"eval", "--truth", truth, "--pred", later});
+  EXPECT_EQ(disjoint.exit_code, 65);
+  EXPECT_THAT(disjoint.err, HasSubstr("no frames in common"));
+
+  const auto ragged = write("ragged.csv", "frame,width_2d\n0,1\n1,2,3\n");
+  const RunResult malformed = run({"eval", "--truth", truth, "--pred", ragged});
+  EXPECT_EQ(malformed.exit_code, 65);
+  EXPECT_THAT(malformed.err, HasSubstr(ragged.string() + ":3"));
+}
+
+TEST_F(EvalPlotTest, CsvReaderHandlesQuotesAndEmptyFields) {
+  const auto path = write("quoted.csv",
+                          "frame,source,width_2d\r\n"
+                          "0,\"a, b \"\"c\"\"\",1.5\r\n"
+                          "\n"
+                          "1,plain,\r\n");
+  const CsvTable table = read_csv_table(path);
+  ASSERT_EQ(table.rows.size(), 2u);
+  EXPECT_EQ(table.rows[0][column_index(table, "source")], "a, b \"c\"");
+  EXPECT_EQ(table.line_numbers[1], 4);
+  const auto width = numeric_column(table, "width_2d");
+  EXPECT_DOUBLE_EQ(width[0], 1.5);
+  EXPECT_TRUE(std::isnan(width[1]));
+}
+
+TEST_F(EvalPlotTest, CsvReaderErrorsNameFileLineAndColumn) {
+  const auto ragged = write("ragged.csv", "frame,width_2d\n0,1\n1\n");
+  try {
+    read_csv_table(ragged);
+    FAIL() << "a row with too few fields was accepted";
+  } catch (const CommandError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(ragged.string() + ":3"));
+    EXPECT_EQ(e.exit_code(), kExitDataError);
+  }
+
+  const CsvTable table = read_csv_table(write("words.csv", "frame,width_2d\n0,1\n1,wide\n"));
+  try {
+    numeric_column(table, "width_2d");
+    FAIL() << "a non-number was accepted";
+  } catch (const CommandError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("words.csv:3"));
+    EXPECT_THAT(e.what(), HasSubstr("width_2d"));
+    EXPECT_THAT(e.what(), HasSubstr("wide"));
+  }
+  EXPECT_THROW(column_index(table, "height_2d"), CommandError);
+}
+
+TEST_F(EvalPlotTest, GridAlignmentOfSharedFixture) {
+  const fs::path align = fs::path(LIPDRIVE_SHARED_FIXTURES) / "grid" / "bbaf2n.align";
+  if (!fs::exists(align)) GTEST_SKIP() << align << " is absent";
+  const auto words = read_grid_align(align);
+  ASSERT_EQ(words.size(), 8u);  // sil bin blue at f two now sil
+
+  // "bin" is 23750-29500: frame 23 spans 23000-24000 and overlaps it, frame 29
+  // spans 29000-30000 and holds its end, frame 30 starts at its end.
+  const auto bin = word_frame_range(words, "bin");
+  ASSERT_TRUE(bin.has_value());
+  EXPECT_EQ(bin->first, 23);
+  EXPECT_EQ(bin->last, 29);
+  EXPECT_FALSE(word_frame_range(words, "lay").has_value());
+
+  // Speech runs from "bin" to "now" (47250-53000: frames 47-52) without a pause.
+  const auto speech = speech_frames(words);
+  EXPECT_EQ(*speech.begin(), 23);
+  EXPECT_EQ(*speech.rbegin(), 52);
+  EXPECT_EQ(speech.size(), 30u);
+}
+
+TEST_F(EvalPlotTest, MalformedAlignLineNamesFileAndLine) {
+  for (const char* bad_line : {"100 abc bin", "2000 1000 bin", "100 200", "100 200 bin extra"}) {
+    const auto path = write("bad.align", std::string("0 100 sil\n") + bad_line + "\n");
+    try {
+      read_grid_align(path);
+      ADD_FAILURE() << "accepted '" << bad_line << "'";
+    } catch (const CommandError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(path.string() + ":2")) << bad_line;
+    }
+  }
+}
+
+/// Distinct saturated hues with at least `min_pixels` pixels: the line colours.
+int line_colour_count(const cv::Mat& image, int min_pixels) {
+  cv::Mat hsv;
+  cv::cvtColor(image, hsv, cv::COLOR_BGR2HSV);
+  std::vector<int> hue_bins(18, 0);  // OpenCV hue is 0-179
+  for (int y = 0; y < hsv.rows; ++y) {
+    for (int x = 0; x < hsv.cols; ++x) {
+      const auto& p = hsv.at<cv::Vec3b>(y, x);
+      if (p[1] > 120 && p[2] > 80) ++hue_bins[p[0] / 10];
+    }
+  }
+  int colours = 0;
+  for (int count : hue_bins) colours += count >= min_pixels ? 1 : 0;
+  return colours;
+}
+
+/// 100 frames of smooth mouth motion with an untracked gap at frames 40-49.
+std::string sine_csv(double phase) {
+  std::ostringstream text;
+  text << "frame,time_s,tracked,width_2d,height_2d\n";
+  for (int frame = 0; frame < 100; ++frame) {
+    const double t = frame / 25.0;
+    text << frame << ',' << t;
+    if (frame >= 40 && frame < 50) {
+      text << ",0,,\n";
+    } else {
+      text << ",1," << std::sin(t * 3 + phase) << ',' << 0.5 + 0.4 * std::cos(t * 5 + phase) << '\n';
+    }
+  }
+  return text.str();
+}
+
+TEST_F(EvalPlotTest, PlotWritesARequestedSizeImageWithOneColourPerFile) {
+  const auto a = write("a.csv", sine_csv(0));
+  const auto b = write("b.csv", sine_csv(1.5));
+  const auto two = dir_ / "two.png";
+  const RunResult result = run({"plot", a, b, "--columns", "width_2d,height_2d", "--out", two,
+                                "--width", "640", "--height", "480", "--title", "two takes"});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  const cv::Mat image = cv::imread(two.string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.cols, 640);
+  EXPECT_EQ(image.rows, 480);
+  cv::Mat grey;
+  cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  EXPECT_GT(cv::countNonZero(grey < 250), 2000);  // not blank
+  EXPECT_EQ(line_colour_count(image, 300), 2);
+
+  const auto one = dir_ / "one.png";
+  ASSERT_EQ(run({"plot", a, "--columns", "width_2d", "--out", one}).exit_code, 0);
+  EXPECT_EQ(line_colour_count(cv::imread(one.string(), cv::IMREAD_COLOR), 300), 1);
+}
+
+TEST_F(EvalPlotTest, PlotOfAMissingColumnFails) {
+  const auto a = write("a.csv", sine_csv(0));
+  const RunResult result =
+      run({"plot", a, "--columns", "protrusion_side", "--out", (dir_ / "x.png").string()});
+  EXPECT_EQ(result.exit_code, 65);
+  EXPECT_THAT(result.err, HasSubstr("protrusion_side"));
+  EXPECT_FALSE(fs::exists(dir_ / "x.png"));
+}
+
+}  // namespace
+}  // namespace lipdrive

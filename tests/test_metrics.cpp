@@ -1,0 +1,109 @@
+// compare_series (DESIGN.md 4.5) on series whose metrics can be worked out by hand.
+#include "core/metrics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kTolerance = 1e-12;
+
+TEST(CompareSeries, PerfectMatchHasNoErrorAndFullCorrelation) {
+  const std::vector<double> z = {1, 3, 2, 5, 4};
+  const SeriesAgreement a = compare_series(z, z);
+  EXPECT_EQ(a.pairs_used, 5);
+  EXPECT_NEAR(a.rmse_scaled, 0, kTolerance);
+  EXPECT_NEAR(a.mae, 0, kTolerance);
+  EXPECT_NEAR(a.max_abs_error, 0, kTolerance);
+  EXPECT_NEAR(a.pearson_r, 1, kTolerance);
+  EXPECT_NEAR(a.std_ratio, 1, kTolerance);
+}
+
+TEST(CompareSeries, AffineOutputHasZeroScaledErrorButRawErrorAndDoubleSpread) {
+  const std::vector<double> z = {0, 1, 2, 3};
+  const std::vector<double> z_hat = {3, 5, 7, 9};  // 2z + 3: errors 3, 4, 5, 6
+  const SeriesAgreement a = compare_series(z, z_hat);
+  EXPECT_NEAR(a.rmse_scaled, 0, kTolerance);
+  EXPECT_NEAR(a.mae, 4.5, kTolerance);
+  EXPECT_NEAR(a.max_abs_error, 6, kTolerance);
+  EXPECT_NEAR(a.pearson_r, 1, kTolerance);
+  EXPECT_NEAR(a.std_ratio, 2, kTolerance);
+}
+
+TEST(CompareSeries, ReversedSeriesIsAntiCorrelated) {
+  const std::vector<double> z = {0, 1, 2};
+  const std::vector<double> z_hat = {2, 1, 0};
+  const SeriesAgreement a = compare_series(z, z_hat);
+  EXPECT_NEAR(a.pearson_r, -1, kTolerance);
+  EXPECT_NEAR(a.std_ratio, 1, kTolerance);
+  // Scaled: (0, .5, 1) vs (1, .5, 0): squared errors 1, 0, 1 → sqrt(2/3).
+  EXPECT_NEAR(a.rmse_scaled, std::sqrt(2.0 / 3.0), kTolerance);
+  EXPECT_NEAR(a.mae, 4.0 / 3.0, kTolerance);
+  EXPECT_NEAR(a.max_abs_error, 2, kTolerance);
+}
+
+TEST(CompareSeries, HandComputedScaledRmseAndCorrelation) {
+  const std::vector<double> z = {0, 2, 4};   // scaled 0, .5, 1
+  const std::vector<double> z_hat = {0, 4, 4};  // scaled 0, 1, 1
+  const SeriesAgreement a = compare_series(z, z_hat);
+  EXPECT_NEAR(a.rmse_scaled, std::sqrt(0.25 / 3.0), kTolerance);
+  EXPECT_NEAR(a.mae, 2.0 / 3.0, kTolerance);
+  EXPECT_NEAR(a.max_abs_error, 2, kTolerance);
+  // Centred: z (-2, 0, 2), ẑ (-8/3, 4/3, 4/3): cov sum 8, sums of squares 8 and 32/3.
+  EXPECT_NEAR(a.pearson_r, 8 / std::sqrt(8 * 32.0 / 3.0), kTolerance);
+  EXPECT_NEAR(a.std_ratio, std::sqrt((32.0 / 3.0) / 8), kTolerance);
+}
+
+TEST(CompareSeries, SkipsPairsWhereEitherValueIsNaN) {
+  const std::vector<double> z = {0, kNaN, 1, 2, 3};
+  const std::vector<double> z_hat = {0, 7, 1, kNaN, 5};
+  const SeriesAgreement a = compare_series(z, z_hat);
+  EXPECT_EQ(a.pairs_used, 3);  // frames 0, 2 and 4
+  EXPECT_NEAR(a.mae, 2.0 / 3.0, kTolerance);
+  EXPECT_NEAR(a.max_abs_error, 2, kTolerance);
+  // (0,1,3) vs (0,1,5): scaled (0,1/3,1) vs (0,.2,1).
+  EXPECT_NEAR(a.rmse_scaled, std::sqrt(std::pow(1.0 / 3.0 - 0.2, 2) / 3.0), kTolerance);
+}
+
+TEST(CompareSeries, ConstantSeriesScaleToZero) {
+  const std::vector<double> z = {2, 2, 2, 2};
+  const SeriesAgreement same = compare_series(z, std::vector<double>{5, 5, 5, 5});
+  EXPECT_NEAR(same.rmse_scaled, 0, kTolerance);  // both flat: same shape
+  EXPECT_NEAR(same.mae, 3, kTolerance);
+  EXPECT_TRUE(std::isnan(same.pearson_r));
+  EXPECT_TRUE(std::isnan(same.std_ratio));
+
+  // Flat truth (zeros after scaling) vs a full swing 0, 1/3, 2/3, 1.
+  const SeriesAgreement moving = compare_series(z, std::vector<double>{0, 1, 2, 3});
+  EXPECT_NEAR(moving.rmse_scaled, std::sqrt((0 + 1.0 / 9 + 4.0 / 9 + 1) / 4), kTolerance);
+  EXPECT_TRUE(std::isnan(moving.pearson_r));
+  EXPECT_TRUE(std::isnan(moving.std_ratio));
+
+  // Flat output against moving truth: correlation undefined, no spread at all.
+  const SeriesAgreement frozen = compare_series(std::vector<double>{0, 1, 2, 3}, z);
+  EXPECT_TRUE(std::isnan(frozen.pearson_r));
+  EXPECT_NEAR(frozen.std_ratio, 0, kTolerance);
+}
+
+TEST(CompareSeries, NoUsablePairsGivesNaN) {
+  const SeriesAgreement a =
+      compare_series(std::vector<double>{kNaN, 1}, std::vector<double>{2, kNaN});
+  EXPECT_EQ(a.pairs_used, 0);
+  EXPECT_TRUE(std::isnan(a.rmse_scaled));
+  EXPECT_TRUE(std::isnan(a.mae));
+  EXPECT_TRUE(std::isnan(a.pearson_r));
+}
+
+TEST(CompareSeries, RejectsSeriesOfDifferentLength) {
+  EXPECT_THROW(compare_series(std::vector<double>{1, 2}, std::vector<double>{1}),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lipdrive

@@ -1,0 +1,206 @@
+// Acceptance tests of `lipdrive process`: accuracy on the generated talking face, lip
+// closures on real GRID speech, and bad input that must fail cleanly.
+#include "core/metrics.hpp"
+#include "firmware_app/csv_table.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <string>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kGridDir = LIPDRIVE_SHARED_FIXTURES "/grid";
+const fs::path kFixtureDir = LIPDRIVE_FIXTURE_DIR;
+
+struct ProcessRun {
+  int exit_code = -1;
+  std::string stderr_text;
+};
+
+// Runs `lipdrive process ARGS` and returns its exit code and stderr (kept in `dir`).
+ProcessRun run_process(const std::string& args, const fs::path& dir) {
+  const fs::path err = dir / "stderr.txt";
+  const std::string command = std::string(LIPDRIVE_BINARY) + " process " + args + " 2>" + err.string();
+  const int status = std::system(command.c_str());
+  ProcessRun run;
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream in(err);
+  run.stderr_text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  fs::remove(err);
+  return run;
+}
+
+class ProcessTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("lipdrive_test_process_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::permissions(dir_, fs::perms::owner_all, fs::perm_options::add, ec);
+    for (const auto& entry : fs::recursive_directory_iterator(dir_, ec))
+      fs::permissions(entry.path(), fs::perms::owner_all, fs::perm_options::add, ec);
+    fs::remove_all(dir_, ec);
+  }
+  fs::path dir_;
+};
+
+std::vector<double> scaled(std::vector<double> v) {
+  const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+  const double min = *lo, range = *hi - *lo;
+  for (double& x : v) x = range > 0 ? (x - min) / range : 0;
+  return v;
+}
+
+TEST_F(ProcessTest, GeneratedTalkingFaceFollowsItsTruth) {
+  const fs::path video = kFixtureDir / "talking_face.avi", truth_csv = kFixtureDir / "talking_face_truth.csv";
+  if (!fs::exists(video) || !fs::exists(truth_csv)) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  const fs::path out = dir_ / "talking_face.csv";
+  const ProcessRun run = run_process(video.string() + " --out " + out.string(), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+
+  const CsvTable truth = read_csv_table(truth_csv);
+  const CsvTable output = read_csv_table(out);
+  ASSERT_EQ(output.rows.size(), truth.rows.size());
+  const auto truth_width = numeric_column(truth, "width_2d"), truth_height = numeric_column(truth, "height_2d");
+  for (const char* column : {"height_2d", "height_fit"}) {
+    const SeriesAgreement a = compare_series(truth_height, numeric_column(output, column));
+    EXPECT_EQ(a.pairs_used, static_cast<int>(truth.rows.size())) << column << ": untracked frames";
+    EXPECT_LE(a.rmse_scaled, 0.08) << column;
+    EXPECT_GE(a.pearson_r, 0.9) << column;
+  }
+  for (const char* column : {"width_2d", "width_fit"}) {
+    const SeriesAgreement a = compare_series(truth_width, numeric_column(output, column));
+    EXPECT_LE(a.rmse_scaled, 0.10) << column;
+  }
+}
+
+TEST_F(ProcessTest, GridSpeechClosesTheLipsOnBilabials) {
+  const fs::path clip = kGridDir / "bbaf2n.mpg";
+  if (!fs::exists(clip)) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  const fs::path out = dir_ / "bbaf2n.csv";
+  const ProcessRun run = run_process(clip.string() + " --out " + out.string() + " --include-landmarks", dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  const CsvTable table = read_csv_table(out);
+  ASSERT_EQ(table.rows.size(), 75u);
+  ASSERT_TRUE(has_column(table, "x67"));
+  ASSERT_TRUE(has_column(table, "y0"));
+  const auto tracked = numeric_column(table, "tracked");
+  EXPECT_TRUE(std::all_of(tracked.begin(), tracked.end(), [](double t) { return t == 1; }));
+
+  // bbaf2n.align: "bin" frames 23-29, "blue" 29-34, final silence 53-74 (the lips settle by 56).
+  const auto height = scaled(numeric_column(table, "height_fit"));
+  const auto min_over = [&](int first, int last) {
+    return *std::min_element(height.begin() + first, height.begin() + last + 1);
+  };
+  EXPECT_LE(min_over(23, 29), 0.2) << "lips do not close on 'bin'";
+  EXPECT_LE(min_over(29, 34), 0.2) << "lips do not close on 'blue'";
+  double silence = 0;
+  for (int f = 56; f <= 74; ++f) silence += height[f];
+  EXPECT_LE(silence / 19, 0.15) << "mouth not closed in the final silence";
+}
+
+TEST_F(ProcessTest, MissingInputFailsWithItsName) {
+  const ProcessRun run = run_process((dir_ / "nothing.avi").string(), dir_);
+  EXPECT_EQ(run.exit_code, 66);
+  EXPECT_NE(run.stderr_text.find("nothing.avi"), std::string::npos) << run.stderr_text;
+}
+
+TEST_F(ProcessTest, TextFileIsNotAVideo) {
+  const fs::path text = dir_ / "notes.txt";
+  std::ofstream(text) << "not a video\n";
+  const ProcessRun run = run_process(text.string(), dir_);
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_LT(run.exit_code, 128) << "crashed: " << run.stderr_text;
+  EXPECT_NE(run.stderr_text.find("notes.txt"), std::string::npos) << run.stderr_text;
+}
+
+TEST_F(ProcessTest, UnreadableFolderFails) {
+  const fs::path folder = dir_ / "locked";
+  fs::create_directories(folder);
+  fs::permissions(folder, fs::perms::none);
+  if (::access(folder.c_str(), R_OK) == 0) GTEST_SKIP() << "running as root: chmod 000 does not lock the folder";
+  const ProcessRun run = run_process(folder.string(), dir_);
+  EXPECT_EQ(run.exit_code, 66);
+  EXPECT_NE(run.stderr_text.find("locked"), std::string::npos) << run.stderr_text;
+}
+
+TEST_F(ProcessTest, VideoWithoutAFaceWritesUntrackedRowsAndFails) {
+  const fs::path noise = dir_ / "noise.avi";
+  {
+    cv::VideoWriter writer(noise.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, cv::Size(320, 240));
+    ASSERT_TRUE(writer.isOpened());
+    cv::Mat frame(240, 320, CV_8UC3);
+    for (int i = 0; i < 12; ++i) {
+      cv::randu(frame, cv::Scalar::all(0), cv::Scalar::all(255));
+      writer.write(frame);
+    }
+  }
+  const fs::path out = dir_ / "noise.csv";
+  const ProcessRun run = run_process(noise.string() + " --out " + out.string(), dir_);
+  EXPECT_NE(run.exit_code, 0);
+  EXPECT_LT(run.exit_code, 128) << "crashed: " << run.stderr_text;
+  EXPECT_NE(run.stderr_text.find("no face"), std::string::npos) << run.stderr_text;
+  const CsvTable table = read_csv_table(out);
+  EXPECT_EQ(table.rows.size(), 12u);
+  const auto tracked = numeric_column(table, "tracked");
+  EXPECT_TRUE(std::all_of(tracked.begin(), tracked.end(), [](double t) { return t == 0; }));
+  const auto height = numeric_column(table, "height_fit");
+  EXPECT_TRUE(std::all_of(height.begin(), height.end(), [](double h) { return std::isnan(h); }));
+}
+
+// An AVI copy of a GRID clip: unlike MPEG program streams, AVI declares its frame count,
+// which is how a truncated recording is told from one that simply ends.
+fs::path grid_clip_as_avi(const fs::path& dir) {
+  cv::VideoCapture capture((kGridDir / "bbaf2n.mpg").string());
+  const fs::path avi = dir / "bbaf2n.avi";
+  cv::Mat frame;
+  cv::VideoWriter writer;
+  while (capture.read(frame)) {
+    if (!writer.isOpened()) writer.open(avi.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, frame.size());
+    writer.write(frame);
+  }
+  return writer.isOpened() ? avi : fs::path();
+}
+
+TEST_F(ProcessTest, DamagedVideoKeepsTheRowsBeforeTheDamage) {
+  fs::path source = kFixtureDir / "talking_face.avi";
+  if (!fs::exists(source) && fs::exists(kGridDir / "bbaf2n.mpg")) source = grid_clip_as_avi(dir_);
+  if (source.empty() || !fs::exists(source)) GTEST_SKIP() << "no video to damage";
+  const fs::path damaged = dir_ / "damaged.avi";
+  fs::copy_file(source, damaged);
+  fs::resize_file(damaged, fs::file_size(source) / 2);
+  const fs::path out = dir_ / "damaged.csv";
+  const ProcessRun run = run_process(damaged.string() + " --out " + out.string(), dir_);
+  EXPECT_NE(run.exit_code, 0) << run.stderr_text;
+  EXPECT_LT(run.exit_code, 128) << "crashed: " << run.stderr_text;
+  EXPECT_NE(run.stderr_text.find("damaged"), std::string::npos) << run.stderr_text;
+  const CsvTable table = read_csv_table(out);
+  const auto all_frames = static_cast<std::size_t>(cv::VideoCapture(source.string()).get(cv::CAP_PROP_FRAME_COUNT));
+  EXPECT_GT(table.rows.size(), 5u);
+  EXPECT_LT(table.rows.size(), all_frames);
+  const auto tracked = numeric_column(table, "tracked");
+  EXPECT_EQ(tracked.front(), 1);
+}
+
+}  // namespace
+}  // namespace lipdrive

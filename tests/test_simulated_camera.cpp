@@ -1,0 +1,275 @@
+#include "sim/simulated_camera.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+
+constexpr int kFrames = 20;
+constexpr double kFps = 25;
+constexpr milliseconds kLongTimeout{1000};
+
+// A frame whose mean brightness encodes its index, so order can be checked after lossy coding.
+cv::Mat numbered_frame(int index) {
+  cv::Mat bgr(120, 160, CV_8UC3, cv::Scalar::all(10 + 10 * index));
+  cv::putText(bgr, std::to_string(index), {20, 80}, cv::FONT_HERSHEY_SIMPLEX, 2, cv::Scalar(0, 0, 255), 3);
+  return bgr;
+}
+
+int decoded_index(const cv::Mat& gray) {
+  // Background level 10 + 10 i dominates the mean; the digits shift it by a few levels.
+  cv::Mat corner = gray(cv::Rect(0, 0, 16, 16));
+  return static_cast<int>(std::lround((cv::mean(corner)[0] - 10) / 10));
+}
+
+class SimulatedCameraTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("lipdrive_simcam_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path write_video(int frames) {
+    const auto path = dir_ / "clip.avi";
+    cv::VideoWriter writer(path.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), kFps, {160, 120});
+    EXPECT_TRUE(writer.isOpened());
+    for (int i = 0; i < frames; ++i) writer.write(numbered_frame(i));
+    return path;
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(SimulatedCameraTest, ReplaysAVideoInOrderWithIncreasingTimestamps) {
+  const auto path = write_video(kFrames);
+  SimulatedCamera camera({.input = path});
+  EXPECT_DOUBLE_EQ(camera.frame_rate(), kFps);
+
+  Frame frame;
+  std::int64_t last_time = 0;
+  for (int i = 0; i < kFrames; ++i) {
+    ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
+    EXPECT_EQ(frame.sequence, static_cast<std::uint64_t>(i));
+    EXPECT_EQ(frame.gray.type(), CV_8UC1);
+    EXPECT_EQ(frame.gray.size(), cv::Size(160, 120));
+    EXPECT_EQ(decoded_index(frame.gray), i);
+    EXPECT_GT(frame.capture_time_ns, last_time);
+    EXPECT_NEAR(frame.media_time_s, i / kFps, 1e-9);
+    EXPECT_EQ(frame.source, path.string());
+    last_time = frame.capture_time_ns;
+  }
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+  EXPECT_FALSE(camera.last_error().has_value());
+}
+
+TEST_F(SimulatedCameraTest, RealTimePacingTakesTheRecordingsDuration) {
+  const auto path = write_video(kFrames);
+  SimulatedCamera camera({.input = path, .real_time = true});
+  Frame frame;
+  const auto start = std::chrono::steady_clock::now();
+  int delivered = 0;
+  while (camera.grab(frame, kLongTimeout) == GrabStatus::kFrame) ++delivered;
+  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(delivered, kFrames);
+  // Frame 0 is due at once, frame N-1 at (N-1)/fps; the end is reported one period later.
+  EXPECT_NEAR(elapsed_s, kFrames / kFps, 0.3 * kFrames / kFps);
+}
+
+TEST_F(SimulatedCameraTest, RealTimeReportsTimeoutWhenTheNextFrameIsNotDue) {
+  const auto path = write_video(3);
+  SimulatedCamera camera({.input = path, .real_time = true, .image_frame_rate = 25});
+  Frame frame;
+  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  // The next frame is due 40 ms later: a 5 ms wait cannot get it.
+  EXPECT_EQ(camera.grab(frame, milliseconds(5)), GrabStatus::kTimeout);
+  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  EXPECT_EQ(frame.sequence, 1u);
+}
+
+TEST_F(SimulatedCameraTest, LoopWrapsToTheFirstFrame) {
+  const auto path = write_video(5);
+  SimulatedCamera camera({.input = path, .loop = true});
+  Frame frame;
+  for (int i = 0; i < 12; ++i) {
+    ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "grab " << i;
+    EXPECT_EQ(frame.sequence, static_cast<std::uint64_t>(i));
+    EXPECT_EQ(decoded_index(frame.gray), i % 5);
+    EXPECT_NEAR(frame.media_time_s, (i % 5) / kFps, 1e-9);
+  }
+}
+
+TEST_F(SimulatedCameraTest, ReplaysAFolderInFileNameOrder) {
+  // Written out of order, with a non-image file that must be skipped.
+  for (const int i : {2, 0, 1}) cv::imwrite((dir_ / ("img_" + std::to_string(i) + ".png")).string(), numbered_frame(i));
+  std::ofstream(dir_ / "notes.txt") << "not an image\n";
+
+  SimulatedCamera camera({.input = dir_, .image_frame_rate = 10});
+  EXPECT_DOUBLE_EQ(camera.frame_rate(), 10);
+  Frame frame;
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+    EXPECT_EQ(frame.source, "img_" + std::to_string(i) + ".png");
+    EXPECT_EQ(decoded_index(frame.gray), i);
+    EXPECT_NEAR(frame.media_time_s, i / 10.0, 1e-12);
+  }
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+}
+
+TEST_F(SimulatedCameraTest, AnUndecodableImageInAFolderIsOneCorruptFrame) {
+  cv::imwrite((dir_ / "a.png").string(), numbered_frame(0));
+  std::ofstream(dir_ / "b.png") << "garbage";
+  cv::imwrite((dir_ / "c.png").string(), numbered_frame(2));
+
+  SimulatedCamera camera({.input = dir_});
+  Frame frame;
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kCorrupt);
+  ASSERT_TRUE(camera.last_error().has_value());
+  EXPECT_NE(camera.last_error()->find("b.png"), std::string::npos);
+  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  EXPECT_EQ(frame.source, "c.png");
+  EXPECT_EQ(frame.sequence, 2u);  // the corrupt frame leaves a gap
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+}
+
+TEST_F(SimulatedCameraTest, ReplaysASingleImage) {
+  const auto path = dir_ / "still.jpg";
+  cv::imwrite(path.string(), numbered_frame(7));
+  SimulatedCamera camera({.input = path});
+  Frame frame;
+  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  EXPECT_EQ(frame.source, "still.jpg");
+  EXPECT_EQ(decoded_index(frame.gray), 7);
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+
+  SimulatedCamera looping({.input = path, .loop = true});
+  for (int i = 0; i < 3; ++i) ASSERT_EQ(looping.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  EXPECT_EQ(frame.sequence, 2u);
+}
+
+void expect_source_error_naming(const fs::path& path) {
+  try {
+    SimulatedCamera camera({.input = path});
+    FAIL() << "no SourceError for " << path;
+  } catch (const SourceError& e) {
+    EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(SimulatedCameraTest, UnusableInputsThrowSourceErrorNamingThePath) {
+  expect_source_error_naming(dir_ / "missing.avi");
+  const auto empty = dir_ / "empty";
+  fs::create_directories(empty);
+  expect_source_error_naming(empty);
+  const auto text = dir_ / "readme.txt";
+  std::ofstream(text) << "this is not a video\n";
+  expect_source_error_naming(text);
+  const auto fake_png = dir_ / "fake.png";
+  std::ofstream(fake_png) << "this is not a png\n";
+  expect_source_error_naming(fake_png);
+}
+
+TEST_F(SimulatedCameraTest, ATruncatedVideoYieldsFramesThenCorruptThenEnd) {
+  const auto path = write_video(kFrames);
+  fs::resize_file(path, fs::file_size(path) / 2);
+
+  SimulatedCamera camera({.input = path});
+  Frame frame;
+  int delivered = 0;
+  GrabStatus status;
+  while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame) ++delivered;
+  EXPECT_GT(delivered, 0);
+  EXPECT_LT(delivered, kFrames);
+  EXPECT_EQ(status, GrabStatus::kCorrupt);
+  ASSERT_TRUE(camera.last_error().has_value());
+  EXPECT_NE(camera.last_error()->find(path.string()), std::string::npos);
+  EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+}
+
+// Fault injection (the pipeline's tests of a misbehaving camera rely on these).
+
+TEST_F(SimulatedCameraTest, InjectedDropsLeaveSequenceGapsAndCorruptFramesAreReported) {
+  const auto path = write_video(kFrames);
+  SimulatedCameraOptions options{.input = path};
+  options.faults.drop_every = 4;
+  options.faults.corrupt_every = 5;
+  SimulatedCamera camera(options);
+  Frame frame;
+  int frames = 0, dropped = 0, corrupt = 0;
+  for (int n = 1; n <= kFrames; ++n) {
+    const GrabStatus status = camera.grab(frame, kLongTimeout);
+    if (n % 4 == 0) {
+      EXPECT_EQ(status, GrabStatus::kTimeout) << "frame " << n << " is dropped";
+      ++dropped;
+    } else if (n % 5 == 0) {
+      EXPECT_EQ(status, GrabStatus::kCorrupt) << "frame " << n;
+      ASSERT_TRUE(camera.last_error().has_value());
+      EXPECT_NE(camera.last_error()->find("injected fault"), std::string::npos);
+      ++corrupt;
+    } else {
+      ASSERT_EQ(status, GrabStatus::kFrame) << "frame " << n;
+      EXPECT_EQ(frame.sequence, static_cast<std::uint64_t>(n - 1)) << "dropped frames leave gaps";
+      EXPECT_EQ(decoded_index(frame.gray), n - 1);
+      ++frames;
+    }
+  }
+  EXPECT_EQ(dropped, 5);
+  EXPECT_EQ(corrupt, 3);
+  EXPECT_EQ(frames, 12);
+}
+
+TEST_F(SimulatedCameraTest, InjectedStallDelaysTheNextFrame) {
+  const auto path = write_video(kFrames);
+  SimulatedCameraOptions options{.input = path};
+  options.faults.stall_every = 2;
+  options.faults.stall = milliseconds(150);
+  SimulatedCamera camera(options);
+  Frame frame;
+  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(camera.grab(frame, milliseconds(20)), GrabStatus::kTimeout);
+  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  EXPECT_GE(std::chrono::steady_clock::now() - start, milliseconds(140));
+  EXPECT_EQ(decoded_index(frame.gray), 2);
+}
+
+TEST_F(SimulatedCameraTest, InjectedDisconnectLastsItsTimeThenFramesResume) {
+  const auto path = write_video(kFrames);
+  SimulatedCameraOptions options{.input = path};
+  options.faults.disconnect_after = 3;
+  options.faults.reconnect = milliseconds(150);
+  SimulatedCamera camera(options);
+  Frame frame;
+  for (int i = 0; i < 3; ++i) ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
+  const auto start = std::chrono::steady_clock::now();
+  int disconnected = 0;
+  GrabStatus status;
+  while ((status = camera.grab(frame, milliseconds(20))) == GrabStatus::kDisconnected) ++disconnected;
+  ASSERT_EQ(status, GrabStatus::kFrame);
+  EXPECT_GE(disconnected, 5);
+  EXPECT_GE(std::chrono::steady_clock::now() - start, milliseconds(140));
+  EXPECT_EQ(decoded_index(frame.gray), 3);
+  // Once only.
+  for (int i = 4; i < kFrames; ++i) ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << i;
+}
+
+}  // namespace
+}  // namespace lipdrive

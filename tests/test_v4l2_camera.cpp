@@ -1,0 +1,553 @@
+// The V4L2 driver against a fake device behind the system-call seam, plus one check that
+// the real system calls fail cleanly.
+#include "drivers/v4l2_camera.hpp"
+#include "tests/fake_v4l2_device.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <time.h>
+
+#include <chrono>
+#include <ostream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+using namespace std::chrono_literals;
+using testing::FakeV4l2Device;
+using testing::test_pattern;
+using Clock = std::chrono::steady_clock;
+
+// How late a grab may return after its timeout: on a shared 2-core machine at load 11,
+// wake-ups from sleep were measured up to ~110 ms late.
+constexpr auto kSlack = 250ms;
+
+V4l2Options options_for(const FakeV4l2Device::Config& config, PixelFormat format = PixelFormat::kAuto) {
+  V4l2Options options;
+  options.device = config.path;
+  options.format = format;
+  options.reconnect_initial = 5ms;
+  options.reconnect_max = 20ms;
+  return options;
+}
+
+std::int64_t monotonic_now_ns() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
+}
+
+std::string error_of(const FakeV4l2Device::Config& config, const V4l2Options& options) {
+  FakeV4l2Device device(config);
+  try {
+    V4l2Camera camera(options, device);
+  } catch (const SourceError& error) {
+    return error.what();
+  }
+  return "(no error)";
+}
+
+// The kernel's rules hold after every test: no leaks, no misuse.
+void expect_clean(const FakeV4l2Device& device) {
+  EXPECT_EQ(device.open_fd_count(), 0u);
+  EXPECT_EQ(device.mapping_count(), 0u);
+  for (const std::string& violation : device.violations()) ADD_FAILURE() << "V4L2 rule broken: " << violation;
+}
+
+// ---- negotiation ------------------------------------------------------------------------
+
+TEST(V4l2Negotiation, HonoursTheRequestedFormat) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_GREY, V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_MJPEG};
+  FakeV4l2Device device(config);
+  {
+    V4l2Camera camera(options_for(config, PixelFormat::kMjpeg), device);
+    EXPECT_EQ(camera.negotiated().format, PixelFormat::kMjpeg);
+    EXPECT_EQ(device.pixel_format(), V4L2_PIX_FMT_MJPEG);
+    EXPECT_TRUE(device.streaming());
+    EXPECT_EQ(camera.negotiated().card, "Fake V4L2 camera");
+  }
+  expect_clean(device);
+}
+
+TEST(V4l2Negotiation, AutoPrefersGreyThenNv12ThenYuyvThenMjpeg) {
+  struct Case {
+    std::vector<std::uint32_t> offered;
+    PixelFormat expected;
+  };
+  const std::vector<Case> cases = {
+      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_NV12, V4L2_PIX_FMT_GREY}, PixelFormat::kGrey},
+      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_NV12}, PixelFormat::kNv12},
+      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_RGB24, V4L2_PIX_FMT_YUYV}, PixelFormat::kYuyv},
+      {{V4L2_PIX_FMT_H264, V4L2_PIX_FMT_MJPEG}, PixelFormat::kMjpeg},
+  };
+  for (const Case& c : cases) {
+    FakeV4l2Device::Config config;
+    config.formats = c.offered;
+    FakeV4l2Device device(config);
+    V4l2Camera camera(options_for(config), device);
+    EXPECT_EQ(camera.negotiated().format, c.expected) << pixel_format_name(c.expected);
+  }
+}
+
+TEST(V4l2Negotiation, UnofferedFormatIsAnErrorNamingTheDevice) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_YUYV};
+  const std::string message = error_of(config, options_for(config, PixelFormat::kGrey));
+  EXPECT_NE(message.find(config.path), std::string::npos) << message;
+  EXPECT_NE(message.find("GREY"), std::string::npos) << message;
+  EXPECT_NE(message.find("YUYV"), std::string::npos) << message;  // what it does offer
+}
+
+TEST(V4l2Negotiation, NoUsableFormatIsAnErrorNamingTheDevice) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_H264, V4L2_PIX_FMT_RGB24};
+  const std::string message = error_of(config, options_for(config));
+  EXPECT_NE(message.find(config.path), std::string::npos) << message;
+  EXPECT_NE(message.find("H264"), std::string::npos) << message;
+}
+
+TEST(V4l2Negotiation, NonCaptureDeviceIsAnErrorNamingTheDevice) {
+  FakeV4l2Device::Config config;
+  config.capabilities = V4L2_CAP_VIDEO_OUTPUT | V4L2_CAP_STREAMING;
+  const std::string message = error_of(config, options_for(config));
+  EXPECT_NE(message.find(config.path), std::string::npos) << message;
+  EXPECT_NE(message.find("capture"), std::string::npos) << message;
+
+  config.capabilities = V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_READWRITE;
+  EXPECT_NE(error_of(config, options_for(config)).find("streaming"), std::string::npos);
+}
+
+TEST(V4l2Negotiation, MissingFakeDeviceIsAnErrorNamingIt) {
+  FakeV4l2Device::Config config;
+  V4l2Options options = options_for(config);
+  options.device = "/dev/video7";
+  const std::string message = error_of(config, options);
+  EXPECT_NE(message.find("/dev/video7"), std::string::npos) << message;
+}
+
+TEST(V4l2Negotiation, AcceptsTheSizeAndRateTheDriverAdjustedTo) {
+  FakeV4l2Device::Config config;
+  config.sizes = {{640, 480}, {320, 240}};
+  config.frame_rates = {30, 15};
+  config.row_padding = 64;
+  FakeV4l2Device device(config);
+  V4l2Options options = options_for(config, PixelFormat::kYuyv);
+  options.width = 300;
+  options.height = 200;
+  options.frame_rate = 14;
+  V4l2Camera camera(options, device);
+  EXPECT_EQ(camera.negotiated().width, 320u);
+  EXPECT_EQ(camera.negotiated().height, 240u);
+  EXPECT_EQ(camera.negotiated().bytes_per_line, 2 * 320u + 64);
+  EXPECT_EQ(camera.negotiated().bytes_per_line, device.bytes_per_line());
+  EXPECT_DOUBLE_EQ(camera.negotiated().frame_rate, 15.0);
+  EXPECT_DOUBLE_EQ(camera.frame_rate(), 15.0);
+  EXPECT_GE(camera.negotiated().buffer_count, 2u);
+}
+
+TEST(V4l2Negotiation, KeepsThePowerOnSizeAndRateWhenNoneIsRequested) {
+  FakeV4l2Device::Config config;
+  config.sizes = {{160, 120}, {320, 240}};
+  config.frame_rates = {25, 50};
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  EXPECT_EQ(camera.negotiated().width, 160u);
+  EXPECT_EQ(camera.negotiated().height, 120u);
+  EXPECT_DOUBLE_EQ(camera.frame_rate(), 25.0);
+}
+
+TEST(V4l2Negotiation, ResolvesByIdNames) {
+  FakeV4l2Device::Config config;
+  config.path = "/dev/v4l/by-id/usb-Fake_Cam-video-index0";
+  FakeV4l2Device device(config);
+  V4l2Options options = options_for(config);
+  options.device = "usb-Fake_Cam-video-index0";
+  V4l2Camera camera(options, device);
+  EXPECT_EQ(camera.describe(), config.path);
+}
+
+TEST(V4l2Negotiation, ParsesPixelFormatNames) {
+  EXPECT_EQ(parse_pixel_format("yuyv"), PixelFormat::kYuyv);
+  EXPECT_EQ(parse_pixel_format("MJPEG"), PixelFormat::kMjpeg);
+  EXPECT_EQ(parse_pixel_format("Auto"), PixelFormat::kAuto);
+  EXPECT_THROW(parse_pixel_format("RGB3"), std::invalid_argument);
+}
+
+// ---- luma extraction ---------------------------------------------------------------------
+
+struct LumaCase {
+  std::uint32_t fourcc;
+  PixelFormat format;
+  unsigned row_padding;
+  double max_error;  // JPEG is lossy; the raw formats must be exact
+};
+
+void PrintTo(const LumaCase& luma_case, std::ostream* out) {
+  *out << pixel_format_name(luma_case.format) << " with " << luma_case.row_padding
+       << " bytes of row padding";
+}
+
+class V4l2Luma : public ::testing::TestWithParam<LumaCase> {};
+
+TEST_P(V4l2Luma, DeliversTheLumaPlaneOfEachFrame) {
+  FakeV4l2Device::Config config;
+  config.formats = {GetParam().fourcc};
+  config.row_padding = GetParam().row_padding;
+  FakeV4l2Device device(config);
+  {
+    V4l2Camera camera(options_for(config, GetParam().format), device);
+    for (int seed = 0; seed < 3; ++seed) {
+      const cv::Mat expected = test_pattern(device.size(), seed);
+      ASSERT_TRUE(device.produce(expected));
+      Frame frame;
+      ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+      ASSERT_EQ(frame.gray.type(), CV_8UC1);
+      ASSERT_EQ(frame.gray.size(), expected.size());
+      EXPECT_LE(cv::norm(frame.gray, expected, cv::NORM_INF), GetParam().max_error) << "frame " << seed;
+      EXPECT_EQ(frame.sequence, std::uint64_t(seed));
+      EXPECT_EQ(frame.source, config.path);
+    }
+  }
+  expect_clean(device);
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, V4l2Luma,
+                         ::testing::Values(LumaCase{V4L2_PIX_FMT_YUYV, PixelFormat::kYuyv, 32, 0},
+                                           LumaCase{V4L2_PIX_FMT_GREY, PixelFormat::kGrey, 0, 0},
+                                           LumaCase{V4L2_PIX_FMT_GREY, PixelFormat::kGrey, 48, 0},
+                                           LumaCase{V4L2_PIX_FMT_NV12, PixelFormat::kNv12, 64, 0},
+                                           LumaCase{V4L2_PIX_FMT_MJPEG, PixelFormat::kMjpeg, 0, 8}),
+                         [](const auto& info) {
+                           return std::string(pixel_format_name(info.param.format)) + "_padding" +
+                                  std::to_string(info.param.row_padding);
+                         });
+
+TEST(V4l2Luma, GreyAndNv12AreViewsOfTheDriverBufferWithItsStride) {
+  for (std::uint32_t fourcc : {V4L2_PIX_FMT_GREY, V4L2_PIX_FMT_NV12}) {
+    FakeV4l2Device::Config config;
+    config.formats = {fourcc};
+    config.row_padding = 40;
+    FakeV4l2Device device(config);
+    V4l2Camera camera(options_for(config), device);
+    ASSERT_TRUE(device.produce(test_pattern(device.size(), 1)));
+    Frame frame;
+    ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+    EXPECT_EQ(frame.gray.step[0], device.bytes_per_line());
+    EXPECT_FALSE(frame.gray.isContinuous());
+    EXPECT_EQ(frame.gray.u, nullptr) << "a copy instead of a view of the mapped buffer";
+  }
+}
+
+TEST(V4l2Luma, YuyvReusesOneLumaBuffer) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config, PixelFormat::kYuyv), device);
+  std::vector<const std::uint8_t*> planes;
+  for (int seed = 0; seed < 3; ++seed) {
+    ASSERT_TRUE(device.produce(test_pattern(device.size(), seed)));
+    Frame frame;
+    ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+    planes.push_back(frame.gray.data);
+  }
+  EXPECT_EQ(planes[0], planes[1]);
+  EXPECT_EQ(planes[1], planes[2]);
+}
+
+// ---- buffer handling and timing ----------------------------------------------------------
+
+TEST(V4l2Buffers, EveryDequeuedBufferIsRequeuedOnceAtTheNextGrab) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  {
+    V4l2Options options = options_for(config);
+    options.buffer_count = 3;
+    V4l2Camera camera(options, device);
+    ASSERT_EQ(camera.negotiated().buffer_count, 3u);
+    for (int seed = 0; seed < 10; ++seed) {
+      ASSERT_TRUE(device.produce(test_pattern(device.size(), seed)));
+      Frame frame;
+      ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+    }
+  }
+  // The initial QBUF of every buffer, then per grab after the first: QBUF of the buffer the
+  // previous grab dequeued, then a DQBUF.
+  const auto& events = device.events();
+  ASSERT_EQ(events.size(), 3u + 10u + 9u);
+  for (unsigned index = 0; index < 3; ++index) {
+    EXPECT_EQ(events[index].kind, FakeV4l2Device::Event::kQueue);
+    EXPECT_EQ(events[index].index, index);
+  }
+  unsigned held = events[3].index;
+  EXPECT_EQ(events[3].kind, FakeV4l2Device::Event::kDequeue);
+  for (std::size_t i = 4; i < events.size(); i += 2) {
+    EXPECT_EQ(events[i].kind, FakeV4l2Device::Event::kQueue);
+    EXPECT_EQ(events[i].index, held) << "event " << i;
+    EXPECT_EQ(events[i + 1].kind, FakeV4l2Device::Event::kDequeue);
+    held = events[i + 1].index;
+  }
+  expect_clean(device);
+}
+
+TEST(V4l2Buffers, StalledDeviceTimesOutWithinTheTimeout) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  Frame frame;
+  const auto start = Clock::now();
+  EXPECT_EQ(camera.grab(frame, 300ms), GrabStatus::kTimeout);
+  const auto elapsed = Clock::now() - start;
+  EXPECT_GE(elapsed, 295ms);
+  EXPECT_LT(elapsed, 300ms + kSlack);
+  EXPECT_LE(device.last_poll_timeout_ms(), 300);
+  EXPECT_TRUE(device.violations().empty());
+}
+
+TEST(V4l2Buffers, SpuriousWakeupIsATimeout) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  device.spurious_wakeup();
+  Frame frame;
+  const auto start = Clock::now();
+  EXPECT_EQ(camera.grab(frame, 200ms), GrabStatus::kTimeout);  // DQBUF said EAGAIN
+  EXPECT_LT(Clock::now() - start, kSlack);
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
+  EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+}
+
+TEST(V4l2Buffers, SequenceGapsAreCountedAsDrops) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Options options = options_for(config);
+  options.buffer_count = 2;
+  V4l2Camera camera(options, device);
+  Frame frame;
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  EXPECT_EQ(frame.sequence, 0u);
+
+  device.skip_frames(3);  // the sensor lost three
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 1)));
+  // One buffer is held by the caller and one is now done: the next capture finds none.
+  EXPECT_FALSE(device.produce(test_pattern(device.size(), 2)));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  EXPECT_EQ(frame.sequence, 4u);
+  EXPECT_EQ(camera.counters().dropped, 3u);
+
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 3)));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  EXPECT_EQ(frame.sequence, 6u);
+  EXPECT_EQ(camera.counters().dropped, 4u);
+  EXPECT_EQ(camera.counters().delivered, 3u);
+}
+
+TEST(V4l2Buffers, CorruptBuffersAreReportedAndTheStreamGoesOn) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  {
+    V4l2Camera camera(options_for(config, PixelFormat::kYuyv), device);
+    Frame frame;
+    ASSERT_TRUE(device.produce_error_frame());
+    EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kCorrupt);
+    ASSERT_TRUE(device.produce_truncated_frame());
+    EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kCorrupt);
+    const cv::Mat expected = test_pattern(device.size(), 5);
+    ASSERT_TRUE(device.produce(expected));
+    ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+    EXPECT_EQ(cv::norm(frame.gray, expected, cv::NORM_INF), 0);
+    EXPECT_EQ(frame.sequence, 2u);  // the corrupt frames are lost frames
+    EXPECT_EQ(camera.counters().corrupt, 2u);
+    EXPECT_EQ(camera.counters().dropped, 0u);
+  }
+  expect_clean(device);  // the corrupt buffers went back to the driver exactly once
+}
+
+TEST(V4l2Buffers, BufferThatIsNotAJpegIsCorrupt) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_MJPEG};
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  Frame frame;
+  ASSERT_TRUE(device.produce_truncated_frame());  // a fresh buffer: zeros, no JPEG header
+  EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kCorrupt);
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
+  EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+}
+
+TEST(V4l2Buffers, MonotonicDriverTimestampsAreUsed) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  Frame frame;
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  EXPECT_EQ(frame.capture_time_ns, device.last_timestamp_ns());
+  EXPECT_EQ(frame.media_time_s, 0.0);
+  std::this_thread::sleep_for(20ms);
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 1)));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  EXPECT_GE(frame.media_time_s, 0.019);
+}
+
+TEST(V4l2Buffers, OtherTimestampsAreReplacedByTheDequeueTime) {
+  FakeV4l2Device::Config config;
+  config.monotonic_timestamps = false;
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  Frame frame;
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
+  const std::int64_t before = monotonic_now_ns();
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  const std::int64_t after = monotonic_now_ns();
+  EXPECT_NE(frame.capture_time_ns, device.last_timestamp_ns());
+  EXPECT_GE(frame.capture_time_ns, before);
+  EXPECT_LE(frame.capture_time_ns, after);
+}
+
+// ---- disconnects and lifetime ------------------------------------------------------------
+
+TEST(V4l2Disconnect, UnplugWhileHoldingABufferReleasesEverything) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  Frame frame;
+  ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  device.unplug();
+  EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kDisconnected);  // QBUF says ENODEV
+  EXPECT_FALSE(camera.connected());
+  EXPECT_EQ(camera.counters().disconnects, 1u);
+  expect_clean(device);
+}
+
+TEST(V4l2Disconnect, UnplugWhileWaitingReleasesEverything) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  Frame frame;
+  ASSERT_EQ(camera.grab(frame, 10ms), GrabStatus::kTimeout);  // holds no buffer now
+  device.unplug();
+  EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kDisconnected);  // poll says POLLERR
+  EXPECT_FALSE(camera.connected());
+  expect_clean(device);
+}
+
+TEST(V4l2Disconnect, FramesResumeWhenTheDeviceComesBack) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(config);
+  V4l2Camera camera(options_for(config), device);
+  Frame frame;
+  for (int seed = 0; seed < 2; ++seed) {
+    ASSERT_TRUE(device.produce(test_pattern(device.size(), seed)));
+    ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  }
+  device.unplug();
+  ASSERT_EQ(camera.grab(frame, 20ms), GrabStatus::kDisconnected);
+
+  // While the device is away every grab reports it (and keeps trying to reopen it).
+  for (int attempt = 0; attempt < 5; ++attempt)
+    EXPECT_EQ(camera.grab(frame, 20ms), GrabStatus::kDisconnected);
+  EXPECT_NE(camera.reconnect_error().find(config.path), std::string::npos) << camera.reconnect_error();
+  EXPECT_EQ(device.open_fd_count(), 0u);
+
+  device.replug();
+  GrabStatus status = GrabStatus::kDisconnected;
+  for (int attempt = 0; attempt < 20 && status == GrabStatus::kDisconnected; ++attempt)
+    status = camera.grab(frame, 20ms);
+  ASSERT_EQ(status, GrabStatus::kTimeout);  // reopened; the sensor has not captured yet
+  EXPECT_TRUE(camera.connected());
+  EXPECT_EQ(camera.counters().reconnects, 1u);
+  EXPECT_TRUE(camera.reconnect_error().empty());
+
+  const cv::Mat expected = test_pattern(device.size(), 9);
+  ASSERT_TRUE(device.produce(expected));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  EXPECT_EQ(cv::norm(frame.gray, expected, cv::NORM_INF), 0);
+  EXPECT_EQ(frame.sequence, 2u);  // keeps counting across the reconnect
+  EXPECT_EQ(device.open_fd_count(), 1u);
+  EXPECT_TRUE(device.violations().empty());
+}
+
+TEST(V4l2Disconnect, BackOffNeverBlocksLongerThanTheTimeout) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Options options = options_for(config);
+  options.reconnect_initial = 2000ms;  // blocking until the next attempt would show
+  options.reconnect_max = 8000ms;
+  V4l2Camera camera(options, device);
+  device.unplug();
+  Frame frame;
+  ASSERT_EQ(camera.grab(frame, 10ms), GrabStatus::kDisconnected);
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    const auto start = Clock::now();
+    EXPECT_EQ(camera.grab(frame, 10ms), GrabStatus::kDisconnected);
+    const auto elapsed = Clock::now() - start;
+    EXPECT_GE(elapsed, 10ms) << "returned early: a caller looping on grab() would spin";
+    EXPECT_LT(elapsed, 10ms + kSlack);
+  }
+  device.replug();
+  // The next attempt is two seconds after the unplug: not yet.
+  EXPECT_EQ(camera.grab(frame, 10ms), GrabStatus::kDisconnected);
+  EXPECT_EQ(device.open_fd_count(), 0u);
+}
+
+TEST(V4l2Disconnect, ReopenAttemptsBackOffExponentially) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  V4l2Options options = options_for(config);
+  options.reconnect_initial = 20ms;
+  options.reconnect_max = 80ms;
+  V4l2Camera camera(options, device);
+  device.unplug();
+  const std::size_t opens_before = device.open_count();
+  Frame frame;
+  // Attempts 20, 60, 140, 220, 300 ms after the unplug: five in 300 ms, where a fixed
+  // 20 ms delay would make fifteen.
+  const auto end = Clock::now() + 310ms;
+  while (Clock::now() < end) EXPECT_EQ(camera.grab(frame, 10ms), GrabStatus::kDisconnected);
+  const std::size_t attempts = device.open_count() - opens_before;
+  EXPECT_GE(attempts, 3u);
+  EXPECT_LE(attempts, 5u);
+}
+
+TEST(V4l2Lifetime, DestructorStopsAndReleasesEverything) {
+  FakeV4l2Device::Config config;
+  FakeV4l2Device device(config);
+  {
+    V4l2Camera camera(options_for(config), device);
+    ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
+    Frame frame;
+    ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+    EXPECT_EQ(device.open_fd_count(), 1u);
+    EXPECT_EQ(device.mapping_count(), camera.negotiated().buffer_count);
+  }
+  EXPECT_FALSE(device.streaming());
+  expect_clean(device);
+}
+
+TEST(V4l2Lifetime, FailedOpenReleasesWhatItTook) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_RGB24};
+  FakeV4l2Device device(config);
+  EXPECT_THROW(V4l2Camera(options_for(config), device), SourceError);
+  expect_clean(device);
+}
+
+TEST(V4l2RealSystemCalls, MissingDeviceThrowsNamingIt) {
+  V4l2Options options;
+  options.device = "/dev/video-does-not-exist";
+  try {
+    V4l2Camera camera(options);
+    FAIL() << "opened a device that does not exist";
+  } catch (const SourceError& error) {
+    EXPECT_NE(std::string(error.what()).find("/dev/video-does-not-exist"), std::string::npos) << error.what();
+  }
+}
+
+}  // namespace
+}  // namespace lipdrive
