@@ -10,6 +10,8 @@
 #include <charconv>
 #include <fstream>
 #include <iterator>
+#include <limits>
+#include <optional>
 #include <string_view>
 #include <unistd.h>
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The quick start: installs what is needed, builds, then
-#   ./scripts/dev.sh run    runs the main job on the embedded defaults
+#   ./scripts/dev.sh run    runs the daemon on the embedded defaults (simulated camera)
 #   ./scripts/dev.sh test   runs the whole test suite
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,8 +17,9 @@ cmake --build build -j"$(nproc)"
 
 case "$job" in
   run)
-    ./build/lipdrive model info build/models/default.lpm
-    exec ./build/lipdrive model fit-demo "$@"
+    # The daemon on the embedded defaults: simulated camera replaying the generated
+    # talking-face clip, default model; live mouth parameters in the log. Ctrl-C stops it.
+    exec ./build/lipdrive run --config config/lipdrive.toml "$@"
     ;;
   test)
     exec ctest --test-dir build --output-on-failure -j"$(nproc)" "$@"

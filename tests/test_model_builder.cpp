@@ -53,10 +53,6 @@ KnownSet known_set() {
   return s;
 }
 
-Eigen::VectorXf flat(const Eigen::Matrix3Xf& vertices) {
-  return Eigen::Map<const Eigen::VectorXf>(vertices.data(), vertices.size());
-}
-
 // Largest distance between corresponding vertices of a pose and its model reconstruction.
 double max_reconstruction_error(const MorphableModel& m, int pose, const Eigen::Matrix3Xf& truth) {
   const Eigen::VectorXf shape = m.shape(m.pose_coefficients.col(pose));

@@ -1,0 +1,214 @@
+// `lipdrive run`: the daemon. `lipdrive check-config`: validate its configuration file.
+//
+// Signals are blocked in every thread and taken on the main thread with sigtimedwait, so
+// no handler runs in the middle of a frame: SIGHUP reloads the configuration, SIGTERM and
+// SIGINT stop cleanly (neutral result to the outputs, threads joined) well within a second.
+#include "firmware_app/command_error.hpp"
+#include "firmware_app/commands.hpp"
+#include "firmware_app/config.hpp"
+#include "firmware_app/model_files.hpp"
+#include "firmware_app/pipeline.hpp"
+#include "firmware_app/predictor_file.hpp"
+#include "firmware_app/take_recorder.hpp"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
+
+#include <csignal>
+#include <cstdio>
+#include <memory>
+
+namespace lipdrive {
+namespace {
+
+struct RunOptions {
+  std::filesystem::path config;
+  bool record = false;
+  std::uint64_t frames = 0;
+  bool stats = false;
+};
+
+std::unique_ptr<FrameSource> make_source(const Config& config) {
+  if (config.camera.type == Config::Camera::Type::kV4l2) return std::make_unique<V4l2Camera>(config.camera.v4l2);
+  try {
+    return std::make_unique<SimulatedCamera>(config.camera.sim);
+  } catch (const SourceError& e) {
+    throw ConfigError(fmt::format("{}: key camera.input: {}", config.file.string(), e.what()));
+  }
+}
+
+std::unique_ptr<FrameProcessor> make_processor(const Config& config) {
+  const MorphableModel model = load_model_file(config.model.file);
+  FitSettings fit;
+  fit.iterations = config.model.iterations;
+  try {
+    return std::make_unique<FrameProcessor>(model, config.model.landmark_set, fit,
+                                            load_predictor_file(config.tracker.predictor));
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(fmt::format("{}: {}", config.model.file.string(), e.what()), kExitDataError);
+  }
+}
+
+/// The watchdog is fed at a quarter of systemd's timeout: late pings still arrive in time.
+std::chrono::microseconds watchdog_interval() {
+  std::uint64_t usec = 0;
+  return sd_watchdog_enabled(0, &usec) > 0 ? std::chrono::microseconds(usec / 4) : std::chrono::microseconds(0);
+}
+
+/// Everything built from one configuration; replaced as a whole on reload.
+struct Daemon {
+  Config config;
+  std::unique_ptr<TakeRecorder> recorder;  // before the pipeline: it must outlive it
+  std::unique_ptr<Pipeline> pipeline;
+};
+
+std::unique_ptr<Daemon> start_daemon(Config config, std::unique_ptr<FrameProcessor> processor,
+                                     const RunOptions& options) {
+  auto daemon = std::make_unique<Daemon>();
+  PipelineSettings settings;
+  settings.max_frames = options.frames;
+  settings.watchdog_interval = watchdog_interval();
+  daemon->pipeline = std::make_unique<Pipeline>(make_source(config), std::move(processor), settings);
+  daemon->recorder = std::make_unique<TakeRecorder>(daemon->pipeline->describe_source(),
+                                                    std::chrono::milliseconds(config.recording.flush_interval_ms));
+  daemon->pipeline->add_sink(*daemon->recorder);
+  if (options.record || config.recording.start) daemon->recorder->start(take_file_name(config.recording.dir));
+  daemon->config = std::move(config);
+  daemon->pipeline->start();
+  spdlog::info("running: {}, model {}, landmark set {}", daemon->pipeline->describe_source(),
+               daemon->config.model.file.string(), landmark_set_name(daemon->config.model.landmark_set));
+  return daemon;
+}
+
+/// Fps over the last interval; latency over the whole run of the pipeline.
+class StatusReporter {
+ public:
+  void report(const Pipeline& pipeline) {
+    const PipelineStats s = pipeline.stats();
+    const double seconds = s.seconds - last_seconds_;
+    const double fps = seconds > 0 ? static_cast<double>(s.processed - last_processed_) / seconds : 0;
+    last_seconds_ = s.seconds;
+    last_processed_ = s.processed;
+    FrameResult latest;
+    pipeline.latest(latest);
+    const std::string line =
+        fmt::format("{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, {}, {}x{}, dropped {}{}", fps,
+                    s.processed_median_ms, s.processed_p99_ms, latest.tracked ? "tracked" : "not tracked",
+                    latest.width, latest.height, s.dropped, s.connected ? "" : ", camera disconnected");
+    spdlog::info("{}", line);
+    sd_notifyf(0, "STATUS=%s", line.c_str());
+  }
+
+ private:
+  double last_seconds_ = 0;
+  std::uint64_t last_processed_ = 0;
+};
+
+void print_stats(const PipelineStats& s) {
+  fmt::print(stderr, "frames: captured {}, processed {}, tracked {}, dropped {}, corrupt {}, lost track {}, "
+                     "disconnects {}\n",
+             s.captured, s.processed, s.tracked, s.dropped, s.corrupt, s.lost_track, s.disconnects);
+  fmt::print(stderr, "capture->processed latency: median {:.2f} ms, p99 {:.2f} ms\n", s.processed_median_ms,
+             s.processed_p99_ms);
+  fmt::print(stderr, "capture->output latency: median {:.2f} ms, p99 {:.2f} ms\n", s.output_median_ms,
+             s.output_p99_ms);
+  fmt::print(stderr, "fps: {:.1f} ({} frames in {:.2f} s)\n",
+             s.seconds > 0 ? static_cast<double>(s.processed) / s.seconds : 0.0, s.processed, s.seconds);
+}
+
+/// A new daemon from the re-read file; the running one stays when the file, the model or the
+/// predictor is wrong. The camera can only be opened once the old pipeline has let go of it:
+/// if that fails, the previous configuration is started again.
+void reload(std::unique_ptr<Daemon>& daemon, const RunOptions& options) {
+  sd_notify(0, "RELOADING=1");
+  Config config;
+  std::unique_ptr<FrameProcessor> processor;
+  try {
+    config = load_config(options.config);
+    processor = make_processor(config);
+  } catch (const std::exception& e) {
+    spdlog::error("reload failed, keeping the running configuration: {}", e.what());
+    sd_notify(0, "READY=1");
+    return;
+  }
+  spdlog::info("{}: reloaded; restarting the pipeline", options.config.string());
+  Config previous = daemon->config;
+  daemon.reset();
+  try {
+    spdlog::set_level(config.log_level);
+    daemon = start_daemon(std::move(config), std::move(processor), options);
+  } catch (const std::exception& e) {
+    spdlog::error("the new configuration does not start, going back to the previous one: {}", e.what());
+    spdlog::set_level(previous.log_level);
+    daemon = start_daemon(previous, make_processor(previous), options);
+  }
+  sd_notify(0, "READY=1");
+}
+
+int run_daemon(const RunOptions& options) {
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (int signal : {SIGHUP, SIGTERM, SIGINT}) sigaddset(&signals, signal);
+  // Before any thread starts, so that every thread inherits the mask.
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  Config config = load_config(options.config);
+  spdlog::set_level(config.log_level);
+  auto processor = make_processor(config);
+  std::unique_ptr<Daemon> daemon = start_daemon(std::move(config), std::move(processor), options);
+  sd_notify(0, "READY=1");
+
+  StatusReporter status;
+  auto next_status =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(daemon->config.status.print_interval_ms);
+  // Short enough to notice --frames and an ended recording promptly.
+  const timespec poll{0, 50'000'000};
+  for (;;) {
+    const int signal = sigtimedwait(&signals, nullptr, &poll);
+    if (signal == SIGTERM || signal == SIGINT) {
+      spdlog::info("{}: stopping", strsignal(signal));
+      break;
+    }
+    if (signal == SIGHUP) {
+      reload(daemon, options);
+      status = StatusReporter();  // a restarted pipeline counts from zero
+    }
+    if (daemon->pipeline->finished()) break;
+    const int interval_ms = daemon->config.status.print_interval_ms;
+    if (interval_ms > 0 && std::chrono::steady_clock::now() >= next_status) {
+      status.report(*daemon->pipeline);
+      next_status = std::chrono::steady_clock::now() + std::chrono::milliseconds(interval_ms);
+    }
+  }
+  sd_notify(0, "STOPPING=1");
+  daemon->pipeline->stop();
+  if (options.stats) print_stats(daemon->pipeline->stats());
+  return daemon->pipeline->failed() ? kExitFailure : 0;
+}
+
+}  // namespace
+
+void add_run_commands(CLI::App& app) {
+  auto options = std::make_shared<RunOptions>();
+  CLI::App* run = app.add_subcommand("run", "Run the capture -> landmarks -> fit -> outputs daemon");
+  run->add_option("--config", options->config, "configuration file (see config/lipdrive.toml)")->required();
+  run->add_flag("--record", options->record, "record a take from the start (see [recording])");
+  run->add_option("--frames", options->frames, "stop after this many processed frames (0 = run until stopped)");
+  run->add_flag("--stats", options->stats, "print frame counts, latency and fps on stderr at exit");
+  run->callback([options] {
+    if (const int code = run_daemon(*options); code != 0)
+      throw CommandError("the camera failed; see the messages above", code);
+  });
+
+  auto file = std::make_shared<std::filesystem::path>();
+  CLI::App* check = app.add_subcommand("check-config", "Validate a configuration file without starting anything");
+  check->add_option("FILE", *file, "configuration file")->required();
+  check->callback([file] {
+    load_config(*file);
+    fmt::print("{}: ok\n", file->string());
+  });
+}
+
+}  // namespace lipdrive

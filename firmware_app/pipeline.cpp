@@ -1,0 +1,204 @@
+#include "firmware_app/pipeline.hpp"
+
+#include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
+
+#include <algorithm>
+#include <cmath>
+#include <ctime>
+
+namespace lipdrive {
+namespace {
+
+// A capture loop that has not come back from grab() for this long is stuck (grab() returns
+// at least every grab_timeout), and the watchdog must stop being fed.
+constexpr std::int64_t kCaptureStallNs = 1'000'000'000;
+
+double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
+
+}  // namespace
+
+std::int64_t monotonic_ns() {
+  timespec now{};
+  ::clock_gettime(CLOCK_MONOTONIC, &now);
+  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
+}
+
+void LatencyHistogram::add(std::int64_t latency_ns) {
+  const auto bin = static_cast<std::int64_t>(ms(std::max<std::int64_t>(latency_ns, 0)) / kBinMs);
+  bins_[static_cast<std::size_t>(std::min<std::int64_t>(bin, kBins - 1))].fetch_add(1, std::memory_order_relaxed);
+  count_.fetch_add(1, std::memory_order_relaxed);
+}
+
+double LatencyHistogram::quantile_ms(double p) const {
+  std::array<std::uint64_t, kBins> counts{};
+  std::uint64_t total = 0;
+  for (int i = 0; i < kBins; ++i) total += counts[i] = bins_[i].load(std::memory_order_relaxed);
+  if (total == 0) return std::nan("");
+  // Nearest rank: the smallest bin with at least p of the samples at or below it.
+  const auto rank = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::ceil(p * static_cast<double>(total))));
+  std::uint64_t seen = 0;
+  for (int i = 0; i < kBins; ++i) {
+    seen += counts[i];
+    if (seen >= rank) return (i + 1) * kBinMs;
+  }
+  return kBins * kBinMs;
+}
+
+Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor,
+                   PipelineSettings settings)
+    : source_(std::move(source)),
+      processor_(std::move(processor)),
+      settings_(settings),
+      source_description_(source_->describe()) {}
+
+Pipeline::~Pipeline() { stop(); }
+
+void Pipeline::start() {
+  start_ns_ = monotonic_ns();
+  capture_heartbeat_ns_ = start_ns_;
+  last_watchdog_ns_ = 0;
+  capture_thread_ = std::thread(&Pipeline::capture_loop, this);
+  processing_thread_ = std::thread(&Pipeline::processing_loop, this);
+  output_thread_ = std::thread(&Pipeline::output_loop, this);
+}
+
+void Pipeline::stop() {
+  // Capture and processing first, so the neutral result is the last thing outputs see.
+  if (stop_ns_ == 0 && start_ns_ > 0) stop_ns_ = monotonic_ns();
+  stop_processing_ = true;
+  if (capture_thread_.joinable()) capture_thread_.join();
+  if (processing_thread_.joinable()) processing_thread_.join();
+  stop_outputs_ = true;
+  if (output_thread_.joinable()) output_thread_.join();
+}
+
+void Pipeline::capture_loop() {
+  Frame frame;
+  while (!stop_processing_.load(std::memory_order_relaxed)) {
+    GrabStatus status;
+    try {
+      status = source_->grab(frame, settings_.grab_timeout);
+    } catch (const std::exception& e) {
+      spdlog::error("{}: {}", source_description_, e.what());
+      failed_ = true;
+      break;
+    }
+    capture_heartbeat_ns_.store(monotonic_ns(), std::memory_order_relaxed);
+    switch (status) {
+      case GrabStatus::kFrame: {
+        CapturedFrame& slot = frames_.back();
+        frame.gray.copyTo(slot.gray);
+        slot.capture_time_ns = frame.capture_time_ns;
+        slot.sequence = frame.sequence;
+        slot.media_time_s = frame.media_time_s;
+        frames_.publish();
+        captured_.fetch_add(1, std::memory_order_relaxed);
+        if (!connected_.exchange(true)) spdlog::info("{}: delivering frames again", source_description_);
+        break;
+      }
+      case GrabStatus::kDisconnected:
+        // Logged once per outage; the source keeps trying to reopen by itself.
+        if (connected_.exchange(false)) {
+          disconnects_.fetch_add(1, std::memory_order_relaxed);
+          spdlog::warn("{}: disconnected; outputs get untracked results until it is back", source_description_);
+        }
+        break;
+      case GrabStatus::kCorrupt:
+        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        spdlog::debug("{}: a corrupt frame was skipped", source_description_);
+        break;
+      case GrabStatus::kEndOfStream:
+        spdlog::info("{}: end of the recording", source_description_);
+        source_ended_ = true;
+        return;
+      case GrabStatus::kTimeout:
+        break;
+    }
+  }
+}
+
+void Pipeline::processing_loop() {
+  const auto wait = std::chrono::nanoseconds(settings_.frame_wait);
+  while (!stop_processing_.load(std::memory_order_relaxed)) {
+    if (const CapturedFrame* frame = frames_.take(wait)) {
+      process(*frame);
+    } else if (source_ended_ || failed_) {
+      finished_.store(true, std::memory_order_release);
+    } else if (!connected_) {
+      // No frames while the camera is away: outputs must learn that nothing is tracked.
+      // (Not a frame, so not for the sinks, which record frames.)
+      FrameResult untracked;
+      untracked.capture_time_ns = untracked.processed_time_ns = monotonic_ns();
+      results_.publish(untracked);
+    }
+    ping_watchdog(monotonic_ns());
+  }
+}
+
+void Pipeline::process(const CapturedFrame& frame) {
+  const FrameMeasurement& measurement = processor_->process(frame.gray);
+  FrameResult result;
+  result.sequence = frame.sequence;
+  result.capture_time_ns = frame.capture_time_ns;
+  result.media_time_s = frame.media_time_s;
+  result.tracked = measurement.tracked;
+  if (measurement.tracked) result.measures = measurement.measures;
+  result.width = frame.gray.cols;
+  result.height = frame.gray.rows;
+  result.processed_time_ns = monotonic_ns();
+  processed_latency_.add(result.processed_time_ns - result.capture_time_ns);
+
+  if (was_tracked_ && !result.tracked) lost_track_.fetch_add(1, std::memory_order_relaxed);
+  was_tracked_ = result.tracked;
+  tracked_.fetch_add(result.tracked, std::memory_order_relaxed);
+  results_.publish(result);
+  for (ResultSink* sink : sinks_) sink->push(result);
+  const std::uint64_t processed = processed_.fetch_add(1, std::memory_order_relaxed) + 1;
+  if (settings_.max_frames > 0 && processed >= settings_.max_frames) finished_.store(true, std::memory_order_release);
+}
+
+void Pipeline::ping_watchdog(std::int64_t now_ns) {
+  if (settings_.watchdog_interval.count() == 0) return;
+  if (now_ns - last_watchdog_ns_ < std::chrono::nanoseconds(settings_.watchdog_interval).count()) return;
+  // A stuck capture thread stalls the pipeline just as surely as a stuck processing loop.
+  if (now_ns - capture_heartbeat_ns_.load(std::memory_order_relaxed) > kCaptureStallNs) return;
+  last_watchdog_ns_ = now_ns;
+  sd_notify(0, "WATCHDOG=1");
+}
+
+void Pipeline::output_loop() {
+  FrameResult result;
+  std::uint32_t seen = 0;
+  while (!stop_outputs_.load(std::memory_order_relaxed)) {
+    results_.wait_newer(seen, settings_.frame_wait);
+    const std::uint32_t version = results_.read(result);
+    if (version == seen) continue;
+    seen = version;
+    output_latency_.add(monotonic_ns() - result.capture_time_ns);
+    for (Output* output : outputs_) output->publish(result);
+  }
+  const FrameResult neutral;
+  for (Output* output : outputs_) output->publish(neutral);
+}
+
+PipelineStats Pipeline::stats() const {
+  PipelineStats s;
+  s.captured = captured_.load(std::memory_order_relaxed);
+  s.processed = processed_.load(std::memory_order_relaxed);
+  s.tracked = tracked_.load(std::memory_order_relaxed);
+  s.dropped = frames_.dropped();
+  s.lost_track = lost_track_.load(std::memory_order_relaxed);
+  s.disconnects = disconnects_.load(std::memory_order_relaxed);
+  s.corrupt = corrupt_.load(std::memory_order_relaxed);
+  s.processed_median_ms = processed_latency_.quantile_ms(0.5);
+  s.processed_p99_ms = processed_latency_.quantile_ms(0.99);
+  s.output_median_ms = output_latency_.quantile_ms(0.5);
+  s.output_p99_ms = output_latency_.quantile_ms(0.99);
+  const std::int64_t end_ns = stop_ns_ > 0 ? stop_ns_.load() : monotonic_ns();
+  s.seconds = start_ns_ > 0 ? static_cast<double>(end_ns - start_ns_) / 1e9 : 0;
+  s.connected = connected_.load(std::memory_order_relaxed);
+  return s;
+}
+
+}  // namespace lipdrive

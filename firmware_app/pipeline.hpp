@@ -1,0 +1,158 @@
+// The daemon's bounded-latency pipeline (DESIGN.md 2): three threads.
+//
+//   capture thread     owns the FrameSource; copies each frame into a LatestFrame slot
+//   processing thread  takes the newest frame, runs FrameProcessor, publishes a FrameResult
+//   output thread      hands every new result to the outputs (Modbus, serial, ... later)
+//
+// A frame that arrives while the previous one is still being processed replaces the waiting
+// one instead of queueing behind it, so latency stays bounded when the CPU is briefly busy.
+// The processing path allocates nothing per frame once the face is tracked.
+#pragma once
+
+#include "core/mouth_measures.hpp"
+#include "drivers/frame_source.hpp"
+#include "firmware_app/frame_processor.hpp"
+#include "firmware_app/latest_frame.hpp"
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <thread>
+#include <vector>
+
+namespace lipdrive {
+
+/// What the pipeline produces per frame; trivially copyable so it can cross threads through
+/// a seqlock. The neutral result (default-constructed) is "not tracked, all zero".
+struct FrameResult {
+  std::uint64_t sequence = 0;           // the source's frame sequence number
+  std::int64_t capture_time_ns = 0;     // CLOCK_MONOTONIC at capture
+  std::int64_t processed_time_ns = 0;   // CLOCK_MONOTONIC when the measures were ready
+  double media_time_s = 0;
+  bool tracked = false;
+  MouthMeasures measures;               // valid when tracked, zero otherwise
+  int width = 0, height = 0;            // frame size in pixels
+};
+
+/// A consumer of live results (the later Modbus, serial and GPIO outputs). publish() is
+/// called from the pipeline's output thread only, for every new result, and once more with
+/// the neutral result when the pipeline stops.
+class Output {
+ public:
+  virtual ~Output() = default;
+  virtual void publish(const FrameResult& result) = 0;
+};
+
+/// Sees every result on the processing thread, in order (the take recorder). push() must
+/// neither block nor allocate.
+class ResultSink {
+ public:
+  virtual ~ResultSink() = default;
+  virtual void push(const FrameResult& result) = 0;
+};
+
+/// Latency distribution with fixed bins: no allocation, one writer, any number of readers.
+class LatencyHistogram {
+ public:
+  static constexpr double kBinMs = 0.05;
+  static constexpr int kBins = 4000;  // 0..200 ms; the last bin also holds everything slower
+
+  void add(std::int64_t latency_ns);
+  /// The upper edge of the bin holding the p-quantile (nearest rank), in ms; NaN when empty.
+  double quantile_ms(double p) const;
+  std::uint64_t count() const { return count_.load(std::memory_order_relaxed); }
+
+ private:
+  std::array<std::atomic<std::uint32_t>, kBins> bins_{};
+  std::atomic<std::uint64_t> count_{0};
+};
+
+struct PipelineSettings {
+  std::chrono::milliseconds grab_timeout{100};  // how often the capture thread looks up from grab()
+  std::chrono::milliseconds frame_wait{100};    // how long the processing thread waits for a frame
+  std::uint64_t max_frames = 0;                 // finished() after this many processed frames; 0 = never
+  /// sd_notify("WATCHDOG=1") from the processing loop at most this often; 0 = off.
+  std::chrono::microseconds watchdog_interval{0};
+};
+
+struct PipelineStats {
+  std::uint64_t captured = 0, processed = 0, tracked = 0;
+  std::uint64_t dropped = 0;      // frames replaced by a newer one before processing
+  std::uint64_t lost_track = 0;   // times a tracked face was lost
+  std::uint64_t disconnects = 0;  // times the source went away
+  std::uint64_t corrupt = 0;      // frames the source could not decode
+  double processed_median_ms = 0, processed_p99_ms = 0;  // capture -> processed
+  double output_median_ms = 0, output_p99_ms = 0;        // capture -> output thread
+  double seconds = 0;             // since start()
+  bool connected = true;          // the source currently delivers
+};
+
+class Pipeline {
+ public:
+  Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor,
+           PipelineSettings settings);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  /// Before start(): where results go. Not owned; must outlive the pipeline.
+  void add_output(Output& output) { outputs_.push_back(&output); }
+  void add_sink(ResultSink& sink) { sinks_.push_back(&sink); }
+
+  void start();
+  /// Finishes the frame in hand, gives the outputs the neutral result, joins all threads.
+  void stop();
+
+  /// max_frames processed, the recording ended, or the source failed for good.
+  bool finished() const { return finished_.load(std::memory_order_acquire); }
+  bool failed() const { return failed_.load(std::memory_order_acquire); }
+
+  PipelineStats stats() const;
+  /// The latest result and its version (0: none yet); lock-free.
+  std::uint32_t latest(FrameResult& result) const { return results_.read(result); }
+  std::string describe_source() const { return source_description_; }
+
+ private:
+  struct CapturedFrame {
+    cv::Mat gray;  // keeps its buffer while the frame size does not change
+    std::int64_t capture_time_ns = 0;
+    std::uint64_t sequence = 0;
+    double media_time_s = 0;
+  };
+
+  void capture_loop();
+  void processing_loop();
+  void output_loop();
+  void process(const CapturedFrame& frame);
+  void ping_watchdog(std::int64_t now_ns);
+
+  std::unique_ptr<FrameSource> source_;
+  std::unique_ptr<FrameProcessor> processor_;
+  PipelineSettings settings_;
+  std::string source_description_;
+  std::vector<Output*> outputs_;
+  std::vector<ResultSink*> sinks_;
+
+  LatestFrame<CapturedFrame> frames_;
+  Published<FrameResult> results_;
+  LatencyHistogram processed_latency_, output_latency_;
+
+  std::atomic<std::uint64_t> captured_{0}, processed_{0}, tracked_{0}, lost_track_{0}, disconnects_{0},
+      corrupt_{0};
+  std::atomic<bool> connected_{true}, source_ended_{false}, finished_{false}, failed_{false};
+  std::atomic<bool> stop_processing_{false}, stop_outputs_{false};
+  std::atomic<std::int64_t> capture_heartbeat_ns_{0};  // the capture loop is alive (watchdog)
+  std::int64_t last_watchdog_ns_ = 0;                    // processing thread's
+  bool was_tracked_ = false;                             // processing thread's
+  std::int64_t start_ns_ = 0;
+  std::atomic<std::int64_t> stop_ns_{0};
+
+  std::thread capture_thread_, processing_thread_, output_thread_;
+};
+
+/// CLOCK_MONOTONIC in ns, the clock of Frame::capture_time_ns.
+std::int64_t monotonic_ns();
+
+}  // namespace lipdrive

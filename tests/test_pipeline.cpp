@@ -1,0 +1,559 @@
+// The daemon's pipeline: the lock-free hand-overs, the pipeline on the simulated camera
+// (tracking, zero allocations per frame, a camera disconnect), and `lipdrive run` as a
+// process (--frames/--stats, SIGTERM, SIGHUP).
+//
+// This binary replaces the global allocator with counting versions; only allocations on a
+// thread that set t_count_allocations are counted, so the test can watch the processing
+// thread alone.
+#include "firmware_app/latest_frame.hpp"
+#include "firmware_app/model_files.hpp"
+#include "firmware_app/pipeline.hpp"
+#include "firmware_app/take_recorder.hpp"
+#include "shared_predictor.hpp"
+#include "sim/simulated_camera.hpp"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <fcntl.h>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <sstream>
+#include <new>
+#include <spawn.h>
+#include <string>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+
+namespace {
+thread_local bool t_count_allocations = false;
+std::atomic<long> g_counted_allocations{0};
+void count_allocation() {
+  if (t_count_allocations) g_counted_allocations.fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+
+// glibc's own entry points, which its malloc/free are aliases of (Eigen and OpenCV allocate
+// through malloc, not new).
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t count, std::size_t size);
+void* __libc_realloc(void* pointer, std::size_t size);
+void __libc_free(void* pointer);
+
+void* malloc(std::size_t size) {
+  count_allocation();
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t count, std::size_t size) {
+  count_allocation();
+  return __libc_calloc(count, size);
+}
+void* realloc(void* pointer, std::size_t size) {
+  count_allocation();
+  return __libc_realloc(pointer, size);
+}
+void free(void* pointer) { __libc_free(pointer); }
+}
+
+void* operator new(std::size_t size) {
+  count_allocation();
+  if (void* pointer = __libc_malloc(size == 0 ? 1 : size)) return pointer;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t size) { return operator new(size); }
+void* operator new(std::size_t size, std::align_val_t alignment) {
+  count_allocation();
+  void* pointer = nullptr;
+  if (posix_memalign(&pointer, static_cast<std::size_t>(alignment), size == 0 ? 1 : size) == 0) return pointer;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t size, std::align_val_t alignment) { return operator new(size, alignment); }
+void operator delete(void* pointer) noexcept { __libc_free(pointer); }
+void operator delete[](void* pointer) noexcept { __libc_free(pointer); }
+void operator delete(void* pointer, std::size_t) noexcept { __libc_free(pointer); }
+void operator delete[](void* pointer, std::size_t) noexcept { __libc_free(pointer); }
+void operator delete(void* pointer, std::align_val_t) noexcept { __libc_free(pointer); }
+void operator delete[](void* pointer, std::align_val_t) noexcept { __libc_free(pointer); }
+void operator delete(void* pointer, std::size_t, std::align_val_t) noexcept { __libc_free(pointer); }
+void operator delete[](void* pointer, std::size_t, std::align_val_t) noexcept { __libc_free(pointer); }
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using ::testing::HasSubstr;
+
+const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+
+// ---------------------------------------------------------------- hand-over structures
+
+struct Numbered {
+  std::uint64_t value = 0;
+};
+
+TEST(LatestFrame, WriterNeverWaitsAndReaderGetsTheNewest) {
+  LatestFrame<Numbered> latest;
+  EXPECT_EQ(latest.take(1ms), nullptr);
+  // No reader at all: the writer still completes every publish.
+  for (std::uint64_t i = 1; i <= 1000; ++i) {
+    latest.back().value = i;
+    latest.publish();
+  }
+  const Numbered* newest = latest.take(0ms);
+  ASSERT_NE(newest, nullptr);
+  EXPECT_EQ(newest->value, 1000u);
+  EXPECT_EQ(latest.dropped(), 999u);
+  EXPECT_EQ(latest.take(1ms), nullptr) << "a taken frame is not delivered twice";
+}
+
+TEST(LatestFrame, ConcurrentReaderSeesIncreasingFramesAndDropsAddUp) {
+  LatestFrame<Numbered> latest;
+  constexpr std::uint64_t kFrames = 200'000;
+  std::atomic<bool> done{false};
+  std::uint64_t taken = 0, last = 0;
+  bool increasing = true;
+  std::thread reader([&] {
+    while (!done || last != kFrames) {
+      if (const Numbered* frame = latest.take(10ms)) {
+        increasing = increasing && frame->value > last;
+        last = frame->value;
+        ++taken;
+        // Slower than the writer, so frames get replaced.
+        const auto busy_until = std::chrono::steady_clock::now() + 2us;
+        while (std::chrono::steady_clock::now() < busy_until) {
+        }
+      }
+    }
+  });
+  for (std::uint64_t i = 1; i <= kFrames; ++i) {
+    latest.back().value = i;
+    latest.publish();
+  }
+  done = true;
+  reader.join();
+  EXPECT_TRUE(increasing);
+  EXPECT_EQ(last, kFrames) << "the newest frame always reaches the reader";
+  EXPECT_GT(latest.dropped(), 0u);
+  EXPECT_EQ(taken + latest.dropped(), kFrames) << "every frame is either taken or counted as dropped";
+}
+
+TEST(LatestFrame, WaitingReaderWakesUpForANewFrame) {
+  LatestFrame<Numbered> latest;
+  std::thread writer([&] {
+    std::this_thread::sleep_for(50ms);
+    latest.back().value = 7;
+    latest.publish();
+  });
+  const auto start = std::chrono::steady_clock::now();
+  const Numbered* frame = latest.take(5s);
+  const auto waited = std::chrono::steady_clock::now() - start;
+  writer.join();
+  ASSERT_NE(frame, nullptr);
+  EXPECT_EQ(frame->value, 7u);
+  EXPECT_LT(waited, 1s);
+}
+
+struct Triple {
+  std::uint64_t a = 0, b = 0, c = 0;
+};
+
+TEST(Published, ReadersNeverSeeATornValue) {
+  Published<Triple> published;
+  Triple first;
+  EXPECT_EQ(published.read(first), 0u);
+  std::atomic<bool> done{false};
+  std::thread writer([&] {
+    for (std::uint64_t i = 1; i <= 200'000; ++i) published.publish({i, i * 2, i * 3});
+    done = true;
+  });
+  bool consistent = true;
+  std::uint32_t last_version = 0;
+  bool monotonic = true;
+  while (!done) {
+    Triple t;
+    const std::uint32_t version = published.read(t);
+    consistent = consistent && t.b == 2 * t.a && t.c == 3 * t.a;
+    monotonic = monotonic && version >= last_version;
+    last_version = version;
+  }
+  writer.join();
+  EXPECT_TRUE(consistent);
+  EXPECT_TRUE(monotonic);
+  Triple last;
+  EXPECT_EQ(published.read(last), 200'000u);
+  EXPECT_EQ(last.a, 200'000u);
+}
+
+TEST(LatencyHistogram, QuantilesOfKnownLatencies) {
+  LatencyHistogram histogram;
+  EXPECT_TRUE(std::isnan(histogram.quantile_ms(0.5)));
+  for (int ms = 1; ms <= 100; ++ms) histogram.add(std::int64_t{ms} * 1'000'000 - 1000);  // just under each ms
+  EXPECT_EQ(histogram.count(), 100u);
+  EXPECT_NEAR(histogram.quantile_ms(0.5), 50.0, LatencyHistogram::kBinMs);
+  EXPECT_NEAR(histogram.quantile_ms(0.99), 99.0, LatencyHistogram::kBinMs);
+  histogram.add(std::int64_t{10'000} * 1'000'000);  // 10 s lands in the last bin
+  EXPECT_EQ(histogram.quantile_ms(1.0), LatencyHistogram::kBins * LatencyHistogram::kBinMs);
+}
+
+// ---------------------------------------------------------------- the pipeline in-process
+
+std::unique_ptr<FrameProcessor> make_processor() {
+  static const MorphableModel model = load_model_file(kModel);
+  return std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor());
+}
+
+SimulatedCameraOptions clip_options() {
+  SimulatedCameraOptions options;
+  options.input = kClip;
+  options.loop = true;
+  return options;
+}
+
+/// Remembers what the outputs were given, from the output thread.
+class RecordingOutput : public Output {
+ public:
+  void publish(const FrameResult& result) override {
+    ++count;
+    untracked += !result.tracked;
+    last = result;
+  }
+  std::atomic<int> count{0}, untracked{0};
+  FrameResult last;
+};
+
+void wait_for(const std::function<bool()>& condition, std::chrono::seconds limit) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!condition() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(5ms);
+}
+
+class PipelineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
+  }
+};
+
+TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
+  PipelineSettings settings;
+  settings.max_frames = 60;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings);
+  RecordingOutput output;
+  pipeline.add_output(output);
+  pipeline.start();
+  wait_for([&] { return pipeline.finished(); }, 60s);
+  FrameResult latest;
+  ASSERT_GT(pipeline.latest(latest), 0u);
+  EXPECT_TRUE(latest.tracked);
+  EXPECT_GT(latest.width, 0);
+  EXPECT_GE(latest.processed_time_ns, latest.capture_time_ns);
+  EXPECT_GT(latest.measures.width_2d, 0);
+  pipeline.stop();
+
+  const PipelineStats stats = pipeline.stats();
+  EXPECT_GE(stats.processed, 60u);
+  EXPECT_GE(stats.captured, stats.processed);
+  EXPECT_GT(static_cast<double>(stats.tracked), 0.9 * static_cast<double>(stats.processed));
+  EXPECT_GT(stats.processed_p99_ms, 0);
+  EXPECT_GT(output.count, 0);
+  EXPECT_FALSE(output.last.tracked) << "the last thing outputs see is the neutral result";
+  EXPECT_EQ(output.last.measures.width_2d, 0);
+}
+
+/// Starts counting the processing thread's allocations once the tracker is warm.
+class AllocationWatch : public ResultSink {
+ public:
+  void push(const FrameResult&) override {
+    if (++frames == kWarmUp) t_count_allocations = true;
+  }
+  static constexpr int kWarmUp = 30;
+  std::atomic<int> frames{0};
+};
+
+TEST_F(PipelineTest, ProcessingAllocatesNothingPerFrame) {
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
+  AllocationWatch watch;
+  pipeline.add_sink(watch);
+  g_counted_allocations = 0;
+  pipeline.start();
+  wait_for([&] { return watch.frames >= AllocationWatch::kWarmUp + 150; }, 120s);
+  pipeline.stop();
+  const PipelineStats stats = pipeline.stats();
+  ASSERT_GE(watch.frames, AllocationWatch::kWarmUp + 150);
+  // Re-detecting a lost face allocates (dlib's detector); the clip keeps the face tracked.
+  ASSERT_EQ(stats.lost_track, 0u);
+  EXPECT_EQ(g_counted_allocations.load(), 0) << "over " << watch.frames - AllocationWatch::kWarmUp << " frames";
+}
+
+TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  options.faults.disconnect_after = 10;
+  options.faults.reconnect = 400ms;
+  PipelineSettings settings;
+  settings.frame_wait = 20ms;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings);
+  RecordingOutput output;
+  pipeline.add_output(output);
+  pipeline.start();
+  wait_for([&] { return !pipeline.stats().connected; }, 30s);
+  const PipelineStats during = pipeline.stats();
+  EXPECT_EQ(during.disconnects, 1u);
+  wait_for([&] { return pipeline.stats().captured >= during.captured + 10; }, 30s);
+  pipeline.stop();
+  const PipelineStats after = pipeline.stats();
+  EXPECT_EQ(after.disconnects, 1u);
+  EXPECT_TRUE(after.connected);
+  EXPECT_GE(after.processed, during.processed + 5) << "frames are processed again after the reconnect";
+  EXPECT_GT(output.untracked, 1) << "outputs heard that nothing was tracked while the camera was away";
+}
+
+TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
+  TakeRecorder recorder("clip", 50ms);
+  pipeline.add_sink(recorder);
+  RecordingOutput output;
+  pipeline.add_output(output);
+  // Every write to /dev/full fails with ENOSPC.
+  recorder.start("/dev/full");
+  pipeline.start();
+  wait_for([&] { return recorder.error().has_value(); }, 30s);
+  ASSERT_TRUE(recorder.error().has_value());
+  EXPECT_THAT(*recorder.error(), HasSubstr("/dev/full: recording stopped: No space left on device"));
+  EXPECT_FALSE(recorder.recording());
+  const std::uint64_t processed = pipeline.stats().processed;
+  const int published = output.count;
+  wait_for([&] { return pipeline.stats().processed > processed + 10 && output.count > published + 10; }, 30s);
+  EXPECT_GT(pipeline.stats().processed, processed + 10) << "the pipeline keeps processing";
+  EXPECT_GT(output.count, published + 10) << "and the outputs keep getting results";
+  pipeline.stop();
+}
+
+// ---------------------------------------------------------------- `lipdrive run`
+
+/// A `lipdrive run` child process with stderr in a file.
+class Daemon {
+ public:
+  Daemon(const fs::path& config, const fs::path& log, const std::string& extra_args = "") : log_(log) {
+    std::vector<std::string> args = {LIPDRIVE_BINARY, "run", "--config", config.string()};
+    for (std::size_t start = 0; start < extra_args.size();) {
+      const std::size_t end = std::min(extra_args.find(' ', start), extra_args.size());
+      if (end > start) args.push_back(extra_args.substr(start, end - start));
+      start = end + 1;
+    }
+    std::vector<char*> argv;
+    for (auto& arg : args) argv.push_back(arg.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    EXPECT_EQ(posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ), 0);
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ~Daemon() {
+    if (pid_ > 0 && !exited_) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+
+  std::string log() const {
+    std::ifstream in(log_);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  }
+  bool wait_for_log(const std::string& text, std::chrono::seconds limit = 60s) const {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (log().find(text) != std::string::npos) return true;
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  }
+  void signal(int number) const { ::kill(pid_, number); }
+  bool running() {
+    int status = 0;
+    return !exited_ && ::waitpid(pid_, &status, WNOHANG) == 0;
+  }
+  /// Exit code, or -1 on a signal or when it is still running after `limit`.
+  int wait(std::chrono::milliseconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    int status = 0;
+    while (::waitpid(pid_, &status, WNOHANG) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) return -1;
+      std::this_thread::sleep_for(5ms);
+    }
+    exited_ = true;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+ private:
+  fs::path log_;
+  pid_t pid_ = -1;
+  bool exited_ = false;
+};
+
+class RunTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
+    dir_ = fs::temp_directory_path() /
+           fmt::format("lipdrive_test_run_{}_{}", ::getpid(),
+                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    config_ = dir_ / "lipdrive.toml";
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  void write_config(const std::string& camera = "real_time = false", int print_interval_ms = 0,
+                    const std::string& rest = "") const {
+    std::ofstream(config_) << fmt::format(
+        "[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n{}\n[status]\nprint_interval_ms = {}\n{}\n",
+        kModel.string(), kClip.string(), camera, print_interval_ms, rest);
+  }
+  fs::path dir_, config_;
+};
+
+TEST_F(RunTest, FramesAndStats) {
+  write_config();
+  Daemon daemon(config_, dir_ / "stderr.txt", "--frames 50 --stats");
+  EXPECT_EQ(daemon.wait(120s), 0) << daemon.log();
+  const std::string log = daemon.log();
+  EXPECT_THAT(log, HasSubstr("capture->processed latency: median"));
+  EXPECT_THAT(log, HasSubstr("fps:"));
+  unsigned long processed = 0;
+  const auto at = log.find("processed ");
+  ASSERT_NE(at, std::string::npos) << log;
+  processed = std::stoul(log.substr(at + 10));
+  EXPECT_GE(processed, 50u);
+}
+
+TEST_F(RunTest, SigtermStopsWithinOneSecond) {
+  write_config("real_time = true");
+  Daemon daemon(config_, dir_ / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
+  std::this_thread::sleep_for(300ms);
+  const auto start = std::chrono::steady_clock::now();
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(1000ms), 0) << daemon.log();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 1s);
+}
+
+TEST_F(RunTest, SighupKeepsRunningOnABadFileAndAppliesAGoodOne) {
+  write_config("real_time = true");
+  Daemon daemon(config_, dir_ / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
+
+  write_config("real_time = true\nfps = 500");
+  daemon.signal(SIGHUP);
+  ASSERT_TRUE(daemon.wait_for_log("reload failed")) << daemon.log();
+  EXPECT_THAT(daemon.log(), HasSubstr("key camera.fps: must be between 1 and 240, got 500"));
+  std::this_thread::sleep_for(200ms);
+  EXPECT_TRUE(daemon.running());
+
+  // Status lines appear only with the new file, so seeing one shows it was applied.
+  write_config("real_time = true", 100);
+  daemon.signal(SIGHUP);
+  ASSERT_TRUE(daemon.wait_for_log("fps, latency median")) << daemon.log();
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(2000ms), 0) << daemon.log();
+}
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> fields;
+  std::size_t start = 0;
+  for (std::size_t comma; (comma = line.find(',', start)) != std::string::npos; start = comma + 1)
+    fields.push_back(line.substr(start, comma - start));
+  fields.push_back(line.substr(start));
+  return fields;
+}
+
+TEST_F(RunTest, RecordWritesCompleteLinesWithTheProcessColumns) {
+  const fs::path takes = dir_ / "takes";
+  write_config("real_time = false", 0, fmt::format("[recording]\ndir = \"{}\"\nflush_interval_ms = 20", takes.string()));
+  Daemon daemon(config_, dir_ / "stderr.txt", "--record --frames 50 --stats");
+  ASSERT_EQ(daemon.wait(120s), 0) << daemon.log();
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(takes)) files.push_back(entry.path());
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_THAT(files[0].filename().string(), ::testing::MatchesRegex("take-[0-9]{8}-[0-9]{6}\\.csv"));
+
+  std::ifstream in(files[0]);
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  ASSERT_FALSE(text.empty());
+  EXPECT_EQ(text.back(), '\n') << "only complete lines";
+  std::istringstream lines(text);
+  std::string line;
+  std::getline(lines, line);
+  const std::vector<std::string> header = split(line);
+  // The columns of `lipdrive process`, then the capture time.
+  EXPECT_EQ(line, measures_csv_header(false) + ",capture_time_ns");
+  int rows = 0, tracked = 0;
+  std::int64_t last_capture = 0;
+  bool ordered = true;
+  while (std::getline(lines, line)) {
+    const std::vector<std::string> fields = split(line);
+    ASSERT_EQ(fields.size(), header.size()) << line;
+    tracked += fields[3] == "1";
+    const std::int64_t capture = std::stoll(fields.back());
+    ordered = ordered && capture > last_capture;
+    last_capture = capture;
+    ++rows;
+  }
+  EXPECT_GE(rows, 50);
+  EXPECT_GT(tracked, rows * 9 / 10);
+  EXPECT_TRUE(ordered) << "rows in capture order";
+}
+
+TEST_F(RunTest, TellsSystemdReadyStatusAndFeedsTheWatchdog) {
+  write_config("real_time = true", 200);
+  // A stand-in for systemd's notification socket.
+  const fs::path socket_path = dir_ / "notify.sock";
+  const int notify = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  sockaddr_un address{};
+  address.sun_family = AF_UNIX;
+  ASSERT_LT(socket_path.string().size(), sizeof address.sun_path);
+  std::strcpy(address.sun_path, socket_path.c_str());
+  ASSERT_EQ(::bind(notify, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+  ::setenv("NOTIFY_SOCKET", socket_path.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "400000", 1);
+  Daemon daemon(config_, dir_ / "stderr.txt");
+  ::unsetenv("NOTIFY_SOCKET");
+  ::unsetenv("WATCHDOG_USEC");
+
+  int ready = 0, status = 0, watchdog = 0;
+  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  while ((ready == 0 || status < 2 || watchdog < 5) && std::chrono::steady_clock::now() < deadline) {
+    pollfd readable{notify, POLLIN, 0};
+    if (::poll(&readable, 1, 100) != 1) continue;
+    char message[512];
+    const ssize_t size = ::recv(notify, message, sizeof message, 0);
+    const std::string text(message, static_cast<std::size_t>(std::max<ssize_t>(size, 0)));
+    ready += text.find("READY=1") != std::string::npos;
+    status += text.find("STATUS=") != std::string::npos && text.find("fps") != std::string::npos;
+    watchdog += text.find("WATCHDOG=1") != std::string::npos;
+  }
+  EXPECT_EQ(ready, 1);
+  EXPECT_GE(status, 2) << "a status every print interval";
+  EXPECT_GE(watchdog, 5) << "pings at a fraction of WATCHDOG_USEC";
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(2000ms), 0) << daemon.log();
+  ::close(notify);
+}
+
+}  // namespace
+}  // namespace lipdrive

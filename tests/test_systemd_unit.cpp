@@ -1,0 +1,84 @@
+// systemd/lipdrive.service: `systemd-analyze verify` accepts it, and its exposure score
+// (`systemd-analyze security --offline=yes`) is reported for the README.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <regex>
+#include <string>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandRun {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr
+};
+
+CommandRun run(const std::string& command) {
+  CommandRun result;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  char buffer[4096];
+  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;) result.output.append(buffer, n);
+  const int status = ::pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+class SystemdUnitTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (run("systemd-analyze --version").exit_code != 0) GTEST_SKIP() << "no systemd-analyze";
+    dir_ = fs::temp_directory_path() / ("lipdrive_test_unit_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  /// The unit with ExecStart's binary replaced by `binary` (verify checks that it exists).
+  fs::path unit_running(const std::string& binary) const {
+    std::ifstream in(fs::path(LIPDRIVE_SOURCE_DIR) / "systemd" / "lipdrive.service");
+    std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    const std::string installed = "ExecStart=/usr/bin/lipdrive ";
+    const auto at = text.find(installed);
+    EXPECT_NE(at, std::string::npos);
+    text.replace(at, installed.size(), "ExecStart=" + binary + " ");
+    const fs::path unit = dir_ / "lipdrive.service";
+    std::ofstream(unit) << text;
+    return unit;
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(SystemdUnitTest, VerifyAcceptsTheUnit) {
+  const CommandRun verify = run("systemd-analyze verify " + unit_running(LIPDRIVE_BINARY).string());
+  EXPECT_EQ(verify.exit_code, 0) << verify.output;
+  EXPECT_THAT(verify.output, ::testing::Not(::testing::HasSubstr("lipdrive.service"))) << "no warnings";
+}
+
+TEST_F(SystemdUnitTest, VerifyRejectsAMissingBinary) {
+  // Shows that the check above can fail.
+  const CommandRun verify = run("systemd-analyze verify " + unit_running((dir_ / "no-such-binary").string()).string());
+  EXPECT_NE(verify.exit_code, 0) << verify.output;
+}
+
+TEST_F(SystemdUnitTest, ExposureScore) {
+  const CommandRun security =
+      run("systemd-analyze security --offline=yes " + unit_running(LIPDRIVE_BINARY).string());
+  std::smatch match;
+  ASSERT_TRUE(std::regex_search(security.output, match, std::regex(R"(Overall exposure level for \S+: ([0-9.]+) (\w+))")))
+      << security.output;
+  const double score = std::stod(match[1]);
+  std::printf("systemd-analyze security --offline=yes: exposure %.1f %s\n", score, match[2].str().c_str());
+  RecordProperty("exposure", match[1].str());
+  // 0 = fully confined, 10 = unprotected; "OK" is systemd's band up to 4.9.
+  EXPECT_LT(score, 5.0) << security.output;
+}
+
+}  // namespace
