@@ -93,10 +93,14 @@ class StatusReporter {
     last_processed_ = s.processed;
     FrameResult latest;
     pipeline.latest(latest);
+    const std::string mouth =
+        latest.tracked ? fmt::format("mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f}", latest.measures.height_fit,
+                                     latest.measures.width_fit, latest.measures.protrusion_3d)
+                       : std::string("not tracked");
     const std::string line =
         fmt::format("{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, {}, {}x{}, dropped {}{}", fps,
-                    s.processed_median_ms, s.processed_p99_ms, latest.tracked ? "tracked" : "not tracked",
-                    latest.width, latest.height, s.dropped, s.connected ? "" : ", camera disconnected");
+                    s.processed_median_ms, s.processed_p99_ms, mouth, latest.width, latest.height, s.dropped,
+                    s.connected ? "" : ", camera disconnected");
     spdlog::info("{}", line);
     sd_notifyf(0, "STATUS=%s", line.c_str());
   }
