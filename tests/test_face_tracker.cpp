@@ -3,6 +3,7 @@
 #include "core/face_tracker.hpp"
 #include "core/shape_predictor.hpp"
 #include "firmware_app/command_error.hpp"
+#include "allocation_counter.hpp"
 #include "shared_predictor.hpp"
 
 #include <dlib/image_processing.h>
@@ -20,40 +21,6 @@
 #include <fstream>
 #include <sstream>
 #include <vector>
-
-// Counts every heap allocation of this test binary, at the C level so that operator new,
-// Eigen and OpenCV buffers are all seen (glibc: the __libc_* entry points are the real
-// allocator): the steady-state tracking path must not make any.
-namespace {
-std::atomic<long> g_allocations{0};
-}
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void* malloc(std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t n, std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return __libc_calloc(n, size);
-}
-void* realloc(void* p, std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return __libc_realloc(p, size);
-}
-int posix_memalign(void** p, std::size_t alignment, std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  *p = __libc_memalign(alignment, size);
-  return *p ? 0 : ENOMEM;
-}
-void* aligned_alloc(std::size_t alignment, std::size_t size) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return __libc_memalign(alignment, size);
-}
-}
 
 namespace lipdrive {
 namespace {
@@ -277,15 +244,16 @@ TEST(FaceTracker, SteadyStateTrackingAllocatesNothing) {
   Landmarks2D landmarks;
   ASSERT_EQ(tracker.track(frames[0], landmarks), TrackStatus::kAcquired);
 
-  const long before_probe = g_allocations.load();
+  test::count_allocations_on_this_thread(true);
+  const long before_probe = test::allocation_count();
   { std::vector<int> probe(3); ASSERT_EQ(probe.size(), 3u); }
-  ASSERT_GT(g_allocations.load(), before_probe) << "the allocation counter does not count";
+  ASSERT_GT(test::allocation_count(), before_probe) << "the allocation counter does not count";
 
   for (std::size_t f = 1; f < frames.size(); ++f) {
-    const long before = g_allocations.load();
+    const long before = test::allocation_count();
     const TrackStatus status = tracker.track(frames[f], landmarks);
     const bool accepted = tracker.check_fit(landmarks, 0.0);
-    const long allocations = g_allocations.load() - before;
+    const long allocations = test::allocation_count() - before;
     ASSERT_EQ(status, TrackStatus::kTracking) << "frame " << f;
     ASSERT_TRUE(accepted);
     EXPECT_EQ(allocations, 0) << "frame " << f;

@@ -2,13 +2,12 @@
 // (tracking, zero allocations per frame, a camera disconnect), and `lipdrive run` as a
 // process (--frames/--stats, SIGTERM, SIGHUP).
 //
-// This binary replaces the global allocator with counting versions; only allocations on a
-// thread that set t_count_allocations are counted, so the test can watch the processing
-// thread alone.
+// Allocations are counted by tests/allocation_counter.cpp on the processing thread alone.
 #include "firmware_app/latest_frame.hpp"
 #include "firmware_app/model_files.hpp"
 #include "firmware_app/pipeline.hpp"
 #include "firmware_app/take_recorder.hpp"
+#include "allocation_counter.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -35,59 +34,6 @@
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
-
-namespace {
-thread_local bool t_count_allocations = false;
-std::atomic<long> g_counted_allocations{0};
-void count_allocation() {
-  if (t_count_allocations) g_counted_allocations.fetch_add(1, std::memory_order_relaxed);
-}
-}  // namespace
-
-// glibc's own entry points, which its malloc/free are aliases of (Eigen and OpenCV allocate
-// through malloc, not new).
-extern "C" {
-void* __libc_malloc(std::size_t size);
-void* __libc_calloc(std::size_t count, std::size_t size);
-void* __libc_realloc(void* pointer, std::size_t size);
-void __libc_free(void* pointer);
-
-void* malloc(std::size_t size) {
-  count_allocation();
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t count, std::size_t size) {
-  count_allocation();
-  return __libc_calloc(count, size);
-}
-void* realloc(void* pointer, std::size_t size) {
-  count_allocation();
-  return __libc_realloc(pointer, size);
-}
-void free(void* pointer) { __libc_free(pointer); }
-}
-
-void* operator new(std::size_t size) {
-  count_allocation();
-  if (void* pointer = __libc_malloc(size == 0 ? 1 : size)) return pointer;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) { return operator new(size); }
-void* operator new(std::size_t size, std::align_val_t alignment) {
-  count_allocation();
-  void* pointer = nullptr;
-  if (posix_memalign(&pointer, static_cast<std::size_t>(alignment), size == 0 ? 1 : size) == 0) return pointer;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size, std::align_val_t alignment) { return operator new(size, alignment); }
-void operator delete(void* pointer) noexcept { __libc_free(pointer); }
-void operator delete[](void* pointer) noexcept { __libc_free(pointer); }
-void operator delete(void* pointer, std::size_t) noexcept { __libc_free(pointer); }
-void operator delete[](void* pointer, std::size_t) noexcept { __libc_free(pointer); }
-void operator delete(void* pointer, std::align_val_t) noexcept { __libc_free(pointer); }
-void operator delete[](void* pointer, std::align_val_t) noexcept { __libc_free(pointer); }
-void operator delete(void* pointer, std::size_t, std::align_val_t) noexcept { __libc_free(pointer); }
-void operator delete[](void* pointer, std::size_t, std::align_val_t) noexcept { __libc_free(pointer); }
 
 namespace lipdrive {
 namespace {
@@ -277,7 +223,7 @@ TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
 class AllocationWatch : public ResultSink {
  public:
   void push(const FrameResult&) override {
-    if (++frames == kWarmUp) t_count_allocations = true;
+    if (++frames == kWarmUp) test::count_allocations_on_this_thread(true);
   }
   static constexpr int kWarmUp = 30;
   std::atomic<int> frames{0};
@@ -287,7 +233,7 @@ TEST_F(PipelineTest, ProcessingAllocatesNothingPerFrame) {
   Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
   AllocationWatch watch;
   pipeline.add_sink(watch);
-  g_counted_allocations = 0;
+  const long before = test::allocation_count();
   pipeline.start();
   wait_for([&] { return watch.frames >= AllocationWatch::kWarmUp + 150; }, 120s);
   pipeline.stop();
@@ -295,7 +241,7 @@ TEST_F(PipelineTest, ProcessingAllocatesNothingPerFrame) {
   ASSERT_GE(watch.frames, AllocationWatch::kWarmUp + 150);
   // Re-detecting a lost face allocates (dlib's detector); the clip keeps the face tracked.
   ASSERT_EQ(stats.lost_track, 0u);
-  EXPECT_EQ(g_counted_allocations.load(), 0) << "over " << watch.frames - AllocationWatch::kWarmUp << " frames";
+  EXPECT_EQ(test::allocation_count() - before, 0) << "over " << watch.frames - AllocationWatch::kWarmUp << " frames";
 }
 
 TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {

@@ -1,0 +1,49 @@
+#include "allocation_counter.hpp"
+
+#include <atomic>
+#include <cerrno>
+#include <cstddef>
+
+namespace {
+thread_local bool t_counting = false;
+std::atomic<long> g_count{0};
+
+void count() {
+  if (t_counting) g_count.fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+
+namespace lipdrive::test {
+long allocation_count() { return g_count.load(); }
+void count_allocations_on_this_thread(bool on) { t_counting = on; }
+}  // namespace lipdrive::test
+
+// glibc's real allocator, which its public malloc family are aliases of.
+extern "C" {
+void* __libc_malloc(std::size_t);
+void* __libc_calloc(std::size_t, std::size_t);
+void* __libc_realloc(void*, std::size_t);
+void* __libc_memalign(std::size_t, std::size_t);
+
+void* malloc(std::size_t size) {
+  count();
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t n, std::size_t size) {
+  count();
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, std::size_t size) {
+  count();
+  return __libc_realloc(p, size);
+}
+int posix_memalign(void** p, std::size_t alignment, std::size_t size) {
+  count();
+  *p = __libc_memalign(alignment, size);
+  return *p ? 0 : ENOMEM;
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) {
+  count();
+  return __libc_memalign(alignment, size);
+}
+}
