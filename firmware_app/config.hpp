@@ -5,6 +5,7 @@
 // device) all throw ConfigError, so a typo never silently falls back to a default.
 #pragma once
 
+#include "core/drive_channels.hpp"
 #include "core/landmarks.hpp"
 #include "drivers/v4l2_camera.hpp"
 #include "firmware_app/command_error.hpp"
@@ -13,7 +14,9 @@
 #include <spdlog/common.h>
 
 #include <filesystem>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace lipdrive {
 
@@ -21,6 +24,67 @@ namespace lipdrive {
 class ConfigError : public CommandError {
  public:
   explicit ConfigError(const std::string& message) : CommandError(message, kExitConfig) {}
+};
+
+/// A serial line (RS-232/RS-485 adapter, USB CDC, pty) for Modbus RTU and the serial outputs.
+struct SerialLineOptions {
+  std::filesystem::path device = "/dev/ttyUSB0";
+  int baud = 115200;
+  char parity = 'N';  // 'N', 'E' or 'O'
+  int data_bits = 8;
+  int stop_bits = 1;
+  bool rs485 = false;  // let the kernel driver switch the RS-485 transceiver (TIOCSRS485)
+};
+
+/// A Modbus peer: TCP address and port, or RTU over a serial line.
+struct ModbusLinkOptions {
+  enum class Transport { kTcp, kRtu };
+  Transport transport = Transport::kTcp;
+  std::string address = "127.0.0.1";  // tcp
+  int port = 1502;                    // tcp
+  SerialLineOptions line;             // rtu
+  int unit_id = 1;                    // slave id, 1..247
+};
+
+/// [[outputs.modbus_server]]: serves the register map (docs/modbus-register-map.md).
+struct ModbusServerOptions {
+  ModbusLinkOptions link;
+  int max_clients = 8;  // tcp: connections served at once
+};
+
+/// [[outputs.modbus_client]]: writes channels to holding registers of a remote slave.
+struct ModbusClientOptions {
+  ModbusLinkOptions link;
+  std::vector<std::string> channels;  // written in this order from first_register; empty = all
+  int first_register = 0;
+  int rate_hz = 50;        // writes per second at most
+  int timeout_ms = 100;    // per request
+  int max_backoff_ms = 5000;  // reconnect delay doubles up to this after failures
+};
+
+/// [[outputs.serial]]: channel values over a serial line (docs/serial-protocol.md).
+struct SerialOutputOptions {
+  enum class Mode { kFramed, kLine, kMaestro };
+  Mode mode = Mode::kFramed;
+  SerialLineOptions line;
+  std::vector<std::string> channels;  // framed and line: sent in this order; empty = all
+  /// maestro: Maestro servo number for each channel (channel values are in microseconds).
+  struct Servo {
+    std::string channel;
+    int servo = 0;  // 0..23
+  };
+  std::vector<Servo> servos;
+  int max_backoff_ms = 5000;  // reopen delay doubles up to this while the port is gone
+};
+
+/// [outputs.gpio]: status and fault lines, calibrate and record buttons (libgpiod).
+struct GpioOptions {
+  bool enabled = false;
+  std::string chip = "gpiochip0";  // name or path
+  /// A line by offset ("17") or by name ("GPIO17"); "" = not used.
+  std::string status_line, fault_line, calibrate_button, record_button;
+  bool buttons_active_low = true;  // buttons pull the line to ground
+  int debounce_ms = 30;
 };
 
 struct Config {
@@ -54,6 +118,16 @@ struct Config {
   struct Status {
     int print_interval_ms = 1000;  // 0 = off
   } status;
+
+  SafetySettings safety;
+  std::vector<ChannelSpec> channels;
+
+  struct Outputs {
+    std::vector<ModbusServerOptions> modbus_servers;
+    std::vector<ModbusClientOptions> modbus_clients;
+    std::vector<SerialOutputOptions> serial;
+    GpioOptions gpio;
+  } outputs;
 };
 
 /// Reads and validates a configuration file. Throws ConfigError naming the file, the key

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <ctime>
 
 namespace lipdrive {
 namespace {
@@ -18,39 +17,15 @@ double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
 }  // namespace
 
-std::int64_t monotonic_ns() {
-  timespec now{};
-  ::clock_gettime(CLOCK_MONOTONIC, &now);
-  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
-}
-
-void LatencyHistogram::add(std::int64_t latency_ns) {
-  const auto bin = static_cast<std::int64_t>(ms(std::max<std::int64_t>(latency_ns, 0)) / kBinMs);
-  bins_[static_cast<std::size_t>(std::min<std::int64_t>(bin, kBins - 1))].fetch_add(1, std::memory_order_relaxed);
-  count_.fetch_add(1, std::memory_order_relaxed);
-}
-
-double LatencyHistogram::quantile_ms(double p) const {
-  std::array<std::uint64_t, kBins> counts{};
-  std::uint64_t total = 0;
-  for (int i = 0; i < kBins; ++i) total += counts[i] = bins_[i].load(std::memory_order_relaxed);
-  if (total == 0) return std::nan("");
-  // Nearest rank: the smallest bin with at least p of the samples at or below it.
-  const auto rank = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::ceil(p * static_cast<double>(total))));
-  std::uint64_t seen = 0;
-  for (int i = 0; i < kBins; ++i) {
-    seen += counts[i];
-    if (seen >= rank) return (i + 1) * kBinMs;
-  }
-  return kBins * kBinMs;
-}
-
 Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor,
                    PipelineSettings settings)
     : source_(std::move(source)),
       processor_(std::move(processor)),
-      settings_(settings),
-      source_description_(source_->describe()) {}
+      settings_(std::move(settings)),
+      source_description_(source_->describe()),
+      channels_(settings_.channels, settings_.safety) {
+  profile_.publish(PerformerProfile{});
+}
 
 Pipeline::~Pipeline() { stop(); }
 
@@ -143,7 +118,12 @@ void Pipeline::process(const CapturedFrame& frame) {
   result.capture_time_ns = frame.capture_time_ns;
   result.media_time_s = frame.media_time_s;
   result.tracked = measurement.tracked;
-  if (measurement.tracked) result.measures = measurement.measures;
+  if (measurement.tracked) {
+    result.measures = measurement.measures;
+    PerformerProfile profile;
+    profile_.read(profile);
+    result.signals = drive_signals(measurement.measures, {}, profile);
+  }
   result.width = frame.gray.cols;
   result.height = frame.gray.rows;
   result.processed_time_ns = monotonic_ns();
@@ -169,17 +149,57 @@ void Pipeline::ping_watchdog(std::int64_t now_ns) {
 
 void Pipeline::output_loop() {
   FrameResult result;
+  DriveFrame frame;
   std::uint32_t seen = 0;
+  const auto tick = std::chrono::nanoseconds(settings_.output_tick);
+  std::uint64_t processed_before = 0;
+  std::int64_t fps_since_ns = monotonic_ns();
   while (!stop_outputs_.load(std::memory_order_relaxed)) {
-    results_.wait_newer(seen, settings_.frame_wait);
+    results_.wait_newer(seen, tick);
     const std::uint32_t version = results_.read(result);
-    if (version == seen) continue;
+    frame.new_result = version != seen;
     seen = version;
-    output_latency_.add(monotonic_ns() - result.capture_time_ns);
-    for (Output* output : outputs_) output->publish(result);
+    const std::int64_t now = monotonic_ns();
+    if (frame.new_result && version > 0) output_latency_.add(now - result.capture_time_ns);
+
+    for (int i = 0; i < channels_.size(); ++i)
+      channels_.set_override(i, control_.overrides[static_cast<std::size_t>(i)].load(std::memory_order_relaxed));
+    const bool enabled = control_.outputs_enabled.load(std::memory_order_relaxed);
+    channels_.step(result.signals, {.tracked = result.tracked, .enabled = enabled, .now_ns = now});
+
+    // Frames per second over the last second or so.
+    if (now - fps_since_ns >= 1'000'000'000) {
+      const std::uint64_t processed = processed_.load(std::memory_order_relaxed);
+      frame.fps = static_cast<float>(static_cast<double>(processed - processed_before) * 1e9 /
+                                     static_cast<double>(now - fps_since_ns));
+      processed_before = processed;
+      fps_since_ns = now;
+    }
+    std::uint16_t status = control_.daemon_status.load(std::memory_order_relaxed);
+    if (result.tracked) status |= kStatusTracking;
+    if (channels_.fail_safe_active()) status |= kStatusFailSafe;
+    if (enabled) status |= kStatusOutputsEnabled;
+    if (connected_.load(std::memory_order_relaxed)) status |= kStatusCameraConnected;
+    frame.status = status;
+    frame.sequence = result.sequence;
+    frame.capture_time_ns = result.capture_time_ns;
+    frame.latency_ms = static_cast<float>(ms(result.processed_time_ns - result.capture_time_ns));
+    send(frame, now);
   }
-  const FrameResult neutral;
-  for (Output* output : outputs_) output->publish(neutral);
+  // The last thing every output sees: the neutral pose.
+  channels_.reset_to_neutral();
+  frame.new_result = false;
+  frame.status = static_cast<std::uint16_t>((frame.status & ~kStatusTracking) | kStatusFailSafe);
+  send(frame, monotonic_ns());
+}
+
+void Pipeline::send(DriveFrame& frame, std::int64_t now_ns) {
+  ++frame.counter;
+  frame.time_ns = now_ns;
+  frame.channel_count = channels_.size();
+  std::ranges::copy(channels_.values(), frame.values.begin());
+  drive_frames_.publish(frame);
+  for (Output* output : outputs_) output->publish(frame);
 }
 
 PipelineStats Pipeline::stats() const {

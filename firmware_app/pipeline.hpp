@@ -2,16 +2,22 @@
 //
 //   capture thread     owns the FrameSource; copies each frame into a LatestFrame slot
 //   processing thread  takes the newest frame, runs FrameProcessor, publishes a FrameResult
-//   output thread      hands every new result to the outputs (Modbus, serial, ... later)
+//   output thread      runs the drive channels' safety layer on every new result (and on idle
+//                      ticks, so the fail-safe eases when no frame comes) and hands the
+//                      DriveFrame to the outputs (Modbus, serial, GPIO)
 //
 // A frame that arrives while the previous one is still being processed replaces the waiting
 // one instead of queueing behind it, so latency stays bounded when the CPU is briefly busy.
 // The processing path allocates nothing per frame once the face is tracked.
 #pragma once
 
+#include "core/calibration.hpp"
+#include "core/drive_channels.hpp"
 #include "core/mouth_measures.hpp"
 #include "drivers/frame_source.hpp"
+#include "firmware_app/drive_output.hpp"
 #include "firmware_app/frame_processor.hpp"
+#include "firmware_app/latency_histogram.hpp"
 #include "firmware_app/latest_frame.hpp"
 
 #include <array>
@@ -33,16 +39,8 @@ struct FrameResult {
   double media_time_s = 0;
   bool tracked = false;
   MouthMeasures measures;               // valid when tracked, zero otherwise
+  DriveSignals signals;                 // calibrated values for the drive, zero when not tracked
   int width = 0, height = 0;            // frame size in pixels
-};
-
-/// A consumer of live results (the later Modbus, serial and GPIO outputs). publish() is
-/// called from the pipeline's output thread only, for every new result, and once more with
-/// the neutral result when the pipeline stops.
-class Output {
- public:
-  virtual ~Output() = default;
-  virtual void publish(const FrameResult& result) = 0;
 };
 
 /// Sees every result on the processing thread, in order (the take recorder). push() must
@@ -53,28 +51,17 @@ class ResultSink {
   virtual void push(const FrameResult& result) = 0;
 };
 
-/// Latency distribution with fixed bins: no allocation, one writer, any number of readers.
-class LatencyHistogram {
- public:
-  static constexpr double kBinMs = 0.05;
-  static constexpr int kBins = 4000;  // 0..200 ms; the last bin also holds everything slower
-
-  void add(std::int64_t latency_ns);
-  /// The upper edge of the bin holding the p-quantile (nearest rank), in ms; NaN when empty.
-  double quantile_ms(double p) const;
-  std::uint64_t count() const { return count_.load(std::memory_order_relaxed); }
-
- private:
-  std::array<std::atomic<std::uint32_t>, kBins> bins_{};
-  std::atomic<std::uint64_t> count_{0};
-};
-
 struct PipelineSettings {
   std::chrono::milliseconds grab_timeout{100};  // how often the capture thread looks up from grab()
   std::chrono::milliseconds frame_wait{100};    // how long the processing thread waits for a frame
   std::uint64_t max_frames = 0;                 // finished() after this many processed frames; 0 = never
   /// sd_notify("WATCHDOG=1") from the processing loop at most this often; 0 = off.
   std::chrono::microseconds watchdog_interval{0};
+  /// The drive: channels and their safety layer; the outputs see them every result and at
+  /// least every output_tick.
+  std::vector<ChannelSpec> channels;
+  SafetySettings safety;
+  std::chrono::milliseconds output_tick{20};
 };
 
 struct PipelineStats {
@@ -99,6 +86,7 @@ class Pipeline {
 
   /// Before start(): where results go. Not owned; must outlive the pipeline.
   void add_output(Output& output) { outputs_.push_back(&output); }
+  const std::vector<Output*>& outputs() const { return outputs_; }
   void add_sink(ResultSink& sink) { sinks_.push_back(&sink); }
 
   void start();
@@ -112,7 +100,14 @@ class Pipeline {
   PipelineStats stats() const;
   /// The latest result and its version (0: none yet); lock-free.
   std::uint32_t latest(FrameResult& result) const { return results_.read(result); }
+  /// The latest drive frame and its version (0: none yet); lock-free.
+  std::uint32_t latest_drive(DriveFrame& frame) const { return drive_frames_.read(frame); }
   std::string describe_source() const { return source_description_; }
+
+  /// Commands to the drive (output enable, overrides) and daemon state the outputs report.
+  DriveControl& control() { return control_; }
+  /// The performer profile the processing thread applies from the next frame on; any thread.
+  void set_profile(const PerformerProfile& profile) { profile_.publish(profile); }
 
  private:
   struct CapturedFrame {
@@ -125,6 +120,7 @@ class Pipeline {
   void capture_loop();
   void processing_loop();
   void output_loop();
+  void send(DriveFrame& frame, std::int64_t now_ns);
   void process(const CapturedFrame& frame);
   void ping_watchdog(std::int64_t now_ns);
 
@@ -137,6 +133,10 @@ class Pipeline {
 
   LatestFrame<CapturedFrame> frames_;
   Published<FrameResult> results_;
+  Published<DriveFrame> drive_frames_;
+  Published<PerformerProfile> profile_;
+  DriveControl control_;
+  ChannelBank channels_;  // output thread's
   LatencyHistogram processed_latency_, output_latency_;
 
   std::atomic<std::uint64_t> captured_{0}, processed_{0}, tracked_{0}, lost_track_{0}, disconnects_{0},
@@ -151,8 +151,5 @@ class Pipeline {
 
   std::thread capture_thread_, processing_thread_, output_thread_;
 };
-
-/// CLOCK_MONOTONIC in ns, the clock of Frame::capture_time_ns.
-std::int64_t monotonic_ns();
 
 }  // namespace lipdrive

@@ -2,6 +2,7 @@
 // (DESIGN.md 4.2: neutral + 16 visemes x 10 intensities).
 #pragma once
 
+#include "core/drive_signals.hpp"  // kVisemeNames
 #include "core/landmarks.hpp"
 #include "core/morphable_model.hpp"
 
@@ -14,11 +15,6 @@
 #include <vector>
 
 namespace lipdrive {
-
-// The 16 visemes of DESIGN.md 4.2, in this order.
-inline constexpr std::array<std::string_view, 16> kVisemeNames{
-    "Aah", "BigAah", "B-M-P", "Ch-J-Sh", "D-S-T", "Eee", "Eh", "F-V",
-    "i",   "K",      "N",     "Oh",      "Ooh-Q", "R",   "Th",  "W"};
 
 struct HeadPose {
   std::string name;

@@ -172,13 +172,16 @@ SimulatedCameraOptions clip_options() {
 /// Remembers what the outputs were given, from the output thread.
 class RecordingOutput : public Output {
  public:
-  void publish(const FrameResult& result) override {
+  void publish(const DriveFrame& frame) override {
     ++count;
-    untracked += !result.tracked;
-    last = result;
+    untracked += !(frame.status & kStatusTracking);
+    opened = std::max(opened.load(), frame.values[0]);
+    last = frame;
   }
+  std::string describe() const override { return "test output"; }
   std::atomic<int> count{0}, untracked{0};
-  FrameResult last;
+  std::atomic<double> opened{0};
+  DriveFrame last;
 };
 
 void wait_for(const std::function<bool()>& condition, std::chrono::seconds limit) {
@@ -196,6 +199,8 @@ class PipelineTest : public ::testing::Test {
 TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
   PipelineSettings settings;
   settings.max_frames = 60;
+  settings.channels = {ChannelSpec{.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 100}};
+  settings.safety.ease_ns = 100'000'000;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings);
   RecordingOutput output;
   pipeline.add_output(output);
@@ -215,8 +220,11 @@ TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
   EXPECT_GT(static_cast<double>(stats.tracked), 0.9 * static_cast<double>(stats.processed));
   EXPECT_GT(stats.processed_p99_ms, 0);
   EXPECT_GT(output.count, 0);
-  EXPECT_FALSE(output.last.tracked) << "the last thing outputs see is the neutral result";
-  EXPECT_EQ(output.last.measures.width_2d, 0);
+  EXPECT_GT(output.opened, 100) << "the open channel followed the talking mouth";
+  EXPECT_FALSE(output.last.status & kStatusTracking) << "the last thing outputs see is the neutral pose";
+  EXPECT_TRUE(output.last.status & kStatusFailSafe);
+  ASSERT_EQ(output.last.channel_count, 1);
+  EXPECT_EQ(output.last.values[0], 100);
 }
 
 /// Starts counting the processing thread's allocations once the tracker is warm.

@@ -1,0 +1,68 @@
+// The drive side of the pipeline (DESIGN.md 5): what every output (Modbus server and client,
+// serial, GPIO) receives, and the commands outputs can send back to the daemon.
+#pragma once
+
+#include "core/drive_channels.hpp"
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+namespace lipdrive {
+
+/// Bits of DriveFrame::status (and of the Modbus status register).
+enum StatusBit : std::uint16_t {
+  kStatusTracking = 1 << 0,        // the newest frame has a tracked face
+  kStatusCalibrated = 1 << 1,      // a performer profile is in use
+  kStatusFailSafe = 1 << 2,        // channels are held at or easing to neutral
+  kStatusSideCamera = 1 << 3,      // a side camera delivers and protrusion comes from it
+  kStatusRecording = 1 << 4,       // a take is being recorded
+  kStatusOutputsEnabled = 1 << 5,  // output enable (a Modbus control register) is on
+  kStatusCameraConnected = 1 << 6, // the front camera delivers frames
+  kStatusModelMismatch = 1 << 7,   // performer and model differ by two mouth-height classes
+};
+
+/// One step of the drive: the channel values after the safety layer. Trivially copyable.
+struct DriveFrame {
+  std::uint32_t counter = 0;          // +1 per drive frame, a heartbeat for remote ends
+  std::uint64_t sequence = 0;         // source frame sequence of the newest result
+  std::int64_t capture_time_ns = 0;   // CLOCK_MONOTONIC capture time of that frame
+  std::int64_t time_ns = 0;           // CLOCK_MONOTONIC when these values were computed
+  bool new_result = false;            // false: an idle tick (no newer frame; easing goes on)
+  std::uint16_t status = 0;           // StatusBit
+  float fps = 0;                      // processed frames per second, recent
+  float latency_ms = 0;               // capture -> processed of the newest result
+  int channel_count = 0;
+  std::array<double, kMaxChannels> values{};  // output units, ChannelBank order
+};
+
+/// A drive output. publish() runs on the pipeline's output thread for every new result and
+/// on idle ticks (so that the fail-safe eases even when no frame arrives); the last call
+/// before the pipeline stops carries the neutral values. publish() must return promptly:
+/// an output whose I/O can block hands the frame to a thread of its own.
+class Output {
+ public:
+  virtual ~Output() = default;
+  virtual void publish(const DriveFrame& frame) = 0;
+  /// For logs and the status line, e.g. "modbus tcp 127.0.0.1:1502".
+  virtual std::string describe() const = 0;
+  /// False while the output cannot reach its peer or device (it keeps retrying by itself).
+  virtual bool healthy() const { return true; }
+};
+
+/// Commands from outputs (Modbus control registers, GPIO button) to the daemon, and daemon
+/// state that outputs report. Lock-free: any thread writes, the owners poll.
+struct DriveControl {
+  DriveControl() {
+    for (auto& value : overrides) value.store(ChannelBank::kNoOverride);
+  }
+  std::atomic<bool> outputs_enabled{true};
+  /// Per channel: a manual value in output units, or ChannelBank::kNoOverride (NaN).
+  std::array<std::atomic<double>, kMaxChannels> overrides;
+  std::atomic<std::uint32_t> calibrate_requests{0};  // +1 per request; the daemon acts on changes
+  std::atomic<int> recording_request{-1};            // 1 start, 0 stop, -1 none (the daemon resets it)
+  std::atomic<std::uint16_t> daemon_status{0};       // kStatusCalibrated | kStatusRecording | ...
+};
+
+}  // namespace lipdrive
