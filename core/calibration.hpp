@@ -5,7 +5,9 @@
 #include "core/drive_signals.hpp"
 #include "core/mouth_measures.hpp"
 
+#include <array>
 #include <span>
+#include <stdexcept>
 
 namespace lipdrive {
 
@@ -15,15 +17,59 @@ struct MeasureRange {
   double scale(double value) const;
 };
 
-/// The ranges of one performer. The defaults cover an average face on the default model
-/// before any calibration: closed to wide-open lips, rest width to a broad smile, and the
-/// model's rounded visemes for protrusion.
+/// The three calibrated measures of one frame.
+struct CalibrationSample {
+  double open = 0;        // MouthMeasures::height_fit
+  double width = 0;       // MouthMeasures::width_fit
+  double protrusion = 0;  // MouthMeasures::protrusion_3d
+};
+CalibrationSample calibration_sample(const MouthMeasures& measures);
+
+/// The ranges of one performer. The defaults, for a performer not yet calibrated, span what
+/// `lipdrive process` measures on the GRID takes and the generated talking face: closed to
+/// wide-open lips, rounded to spread, and the fit's protrusion range.
 struct PerformerProfile {
-  MeasureRange open{0.0, 0.5};          // MouthMeasures::height_fit
-  MeasureRange width{0.6, 1.1};         // MouthMeasures::width_fit
-  MeasureRange protrusion{0.0, 0.06};   // MouthMeasures::protrusion_3d
+  MeasureRange open{0.03, 0.35};        // MouthMeasures::height_fit
+  MeasureRange width{1.0, 1.5};         // MouthMeasures::width_fit
+  MeasureRange protrusion{-0.02, 0.06}; // MouthMeasures::protrusion_3d
+  CalibrationSample rest{0.03, 1.2, 0.0};  // the neutral capture's median
   bool calibrated = false;              // measured on this performer (else the defaults)
 };
+
+/// A capture that cannot calibrate: too few frames, or a range of motion without motion.
+class CalibrationError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Collects one capture (neutral or range of motion) in fixed storage: add() allocates
+/// nothing, so the daemon can capture on its processing thread.
+class CalibrationCapture {
+ public:
+  static constexpr int kCapacity = 3600;  // a minute at 60 fps; later samples are ignored
+  void add(const MouthMeasures& measures);
+  void clear() { count_ = 0; }
+  int size() const { return count_; }
+  std::span<const CalibrationSample> samples() const { return {samples_.data(), static_cast<std::size_t>(count_)}; }
+
+ private:
+  std::array<CalibrationSample, kCapacity> samples_{};
+  int count_ = 0;
+};
+
+/// The fewest frames a neutral capture needs (a third of a second at 30 fps).
+inline constexpr int kMinNeutralFrames = 10;
+
+/// A profile from a neutral capture (the performer at rest) and a range-of-motion capture
+/// (open / wide / round / closed). Robust statistics so that a few mistracked frames do not
+/// move the ends: rest = median of the neutral frames; open and protrusion run from rest to
+/// the 98th percentile of the motion, width from its 2nd to its 98th percentile (rounding
+/// narrows the mouth below rest). Throws CalibrationError naming the measure at fault.
+PerformerProfile calibrate(std::span<const CalibrationSample> neutral, std::span<const CalibrationSample> motion);
+
+/// Re-centring on a new neutral capture: each range keeps its span and moves with the rest
+/// point, which also removes the slow drift of a helmet slipping during a take.
+PerformerProfile recentre(const PerformerProfile& profile, std::span<const CalibrationSample> neutral);
 
 /// The drive signals of one tracked frame: calibrated open / width / protrusion, viseme
 /// weights as given, tracking = 1.

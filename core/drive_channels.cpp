@@ -23,6 +23,7 @@ ChannelBank::ChannelBank(std::span<const ChannelSpec> specs, SafetySettings safe
       throw std::invalid_argument("channel " + spec.name + ": neutral must lie between out_min and out_max");
     if (spec.max_slew_per_s < 0) throw std::invalid_argument("channel " + spec.name + ": max_slew_per_s < 0");
     specs_[static_cast<std::size_t>(count_)] = spec;
+    if (spec.smoothed) filters_[static_cast<std::size_t>(count_)] = OneEuroFilter(spec.smoothing);
     neutral_[static_cast<std::size_t>(count_)] = spec.neutral;
     ++count_;
   }
@@ -56,7 +57,13 @@ std::span<const double> ChannelBank::step(const DriveSignals& signals, const Dri
     if (spec.signal == Signal::kTracking) {
       desired = map_to_output(spec, input.tracked ? 1.0 : 0.0);
     } else {
-      if (live) held_target_[i] = map_to_output(spec, signals[spec.signal]);
+      if (live) {
+        double value = signals[spec.signal];
+        if (spec.smoothed) value = filters_[i].filter(value, static_cast<double>(input.frame_time_ns) * 1e-9);
+        held_target_[i] = map_to_output(spec, value);
+      } else {
+        filters_[i].reset();
+      }
       desired = neutral_[i] + gain_ * (held_target_[i] - neutral_[i]);
     }
     if (!std::isnan(override_[i]))

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "core/drive_signals.hpp"
+#include "core/one_euro_filter.hpp"
 
 #include <array>
 #include <cstdint>
@@ -24,6 +25,8 @@ struct ChannelSpec {
   double neutral = 0;              // the safe pose, in output units
   double max_slew_per_s = 0;       // output units per second; 0 = unlimited
   bool invert = false;             // in_min maps to out_max
+  bool smoothed = false;           // 1€-filter the signal (frame timestamps) before mapping
+  OneEuroSettings smoothing;
 };
 
 struct SafetySettings {
@@ -39,6 +42,7 @@ struct DriveInput {
   bool tracked = false;         // the signals come from a tracked face
   bool enabled = true;          // outputs enabled; disabled eases to neutral like a loss
   std::int64_t now_ns = 0;      // monotonic
+  std::int64_t frame_time_ns = 0;  // capture time of the signals: the smoothing's clock
 };
 
 /// The state of all channels of one drive. Channel values start at neutral.
@@ -48,6 +52,8 @@ struct DriveInput {
 /// for hold_ns it falls to 0 over ease_ns, the targets frozen at the last tracked values, so
 /// neither the loss nor the return makes a jump. The slew limit applies last, to everything
 /// including overrides. Channels following kTracking report the state and are not eased.
+/// Smoothed channels filter the signal on the frames' capture times, so idle ticks (the same
+/// frame again) leave it unchanged; a loss resets the filter, so a new track starts fresh.
 class ChannelBank {
  public:
   static constexpr double kNoOverride = std::numeric_limits<double>::quiet_NaN();
@@ -74,6 +80,7 @@ class ChannelBank {
 
  private:
   std::array<ChannelSpec, kMaxChannels> specs_;
+  std::array<OneEuroFilter, kMaxChannels> filters_;
   std::array<double, kMaxChannels> values_{}, neutral_{}, held_target_{}, override_{};
   int count_ = 0;
   SafetySettings safety_;

@@ -1,7 +1,10 @@
 // `lipdrive fixture talking-face`: a talking-face clip with known ground truth from a
 // real portrait (sim/talking_face.hpp), for `lipdrive process` -> `lipdrive eval`.
+// `lipdrive fixture side-view`: the built-in head in profile with known upper-lip
+// protrusion (sim/side_view.hpp), for the side camera's measure.
 #include "firmware_app/command_error.hpp"
 #include "firmware_app/commands.hpp"
+#include "sim/side_view.hpp"
 #include "sim/talking_face.hpp"
 
 #include <CLI/CLI.hpp>
@@ -84,6 +87,22 @@ Landmarks2D detect_landmarks(const cv::Mat& portrait, const fs::path& portrait_p
   return landmarks;
 }
 
+void create_output_directory(const fs::path& out) {
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) throw CommandError(fmt::format("{}: cannot create the directory: {}", out.string(), ec.message()));
+}
+
+// MJPG at the highest quality: decodable everywhere, and the luma the pipeline reads
+// stays within a grey level or two of the rendered frame.
+cv::VideoWriter open_video(const fs::path& path, double fps, cv::Size frame_size) {
+  cv::VideoWriter video(path.string(), cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps,
+                        frame_size);
+  if (!video.isOpened()) throw CommandError(fmt::format("{}: cannot open for writing", path.string()));
+  video.set(cv::VIDEOWRITER_PROP_QUALITY, 100);
+  return video;
+}
+
 void write_talking_face(const TalkingFaceArgs& args) {
   const cv::Mat portrait = read_portrait(args.portrait);
   const Landmarks2D landmarks = detect_landmarks(portrait, args.portrait, args.predictor);
@@ -91,18 +110,10 @@ void write_talking_face(const TalkingFaceArgs& args) {
   const TalkingFace face(portrait, landmarks, options);
   const auto poses = scripted_trajectory(args.fps);
 
-  std::error_code ec;
-  fs::create_directories(args.out, ec);
-  if (ec) throw CommandError(fmt::format("{}: cannot create the directory: {}", args.out.string(), ec.message()));
+  create_output_directory(args.out);
   const fs::path video_path = args.out / "talking_face.avi";
   const fs::path truth_path = args.out / "talking_face_truth.csv";
-
-  // MJPG at the highest quality: decodable everywhere, and the luma the pipeline reads
-  // stays within a grey level or two of the rendered frame.
-  cv::VideoWriter video(video_path.string(), cv::CAP_OPENCV_MJPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'),
-                        args.fps, options.frame_size);
-  if (!video.isOpened()) throw CommandError(fmt::format("{}: cannot open for writing", video_path.string()));
-  video.set(cv::VIDEOWRITER_PROP_QUALITY, 100);
+  cv::VideoWriter video = open_video(video_path, args.fps, options.frame_size);
   try {
     auto truth = fmt::output_file(truth_path.string());
     truth.print("frame,time_s,width_2d,height_2d\n");
@@ -116,6 +127,36 @@ void write_talking_face(const TalkingFaceArgs& args) {
   }
   video.release();
   spdlog::info("wrote {} frames to {} and {}", poses.size(), video_path.string(), truth_path.string());
+}
+
+struct SideViewArgs {
+  fs::path out;
+  double fps = 25;
+};
+
+void write_side_view(const SideViewArgs& args) {
+  const SyntheticHead head = generate_synthetic_head(HeadPoseSet::Full161);
+  const SideViewOptions options;
+  const ImageProjection projection = side_projection(head, options);
+  const auto blends = side_view_trajectory(head, args.fps);
+
+  create_output_directory(args.out);
+  const fs::path video_path = args.out / "side_view.avi";
+  const fs::path truth_path = args.out / "side_view_truth.csv";
+  cv::VideoWriter video = open_video(video_path, args.fps, options.frame_size);
+  try {
+    auto truth = fmt::output_file(truth_path.string());
+    truth.print("frame,time_s,protrusion_truth\n");
+    for (std::size_t f = 0; f < blends.size(); ++f) {
+      const Eigen::Matrix3Xf vertices = blend_vertices(head, blends[f]);
+      video.write(render_side_view(head, vertices, options.frame_size, projection));
+      truth.print("{},{:.6f},{:.6f}\n", f, f / args.fps, upper_lip_protrusion(head, vertices));
+    }
+  } catch (const std::system_error& e) {
+    throw CommandError(fmt::format("{}: cannot write: {}", truth_path.string(), e.code().message()));
+  }
+  video.release();
+  spdlog::info("wrote {} frames to {} and {}", blends.size(), video_path.string(), truth_path.string());
 }
 
 }  // namespace
@@ -133,6 +174,14 @@ void add_fixture_command(CLI::App& app) {
   talking->add_option("--fps", args->fps, "Frame rate of the clip")->capture_default_str()->check(
       CLI::PositiveNumber);
   talking->callback([args] { write_talking_face(*args); });
+
+  auto side_args = std::make_shared<SideViewArgs>();
+  auto* side = fixture->add_subcommand(
+      "side-view", "The built-in head in profile (side_view.avi) and its upper-lip protrusion (side_view_truth.csv)");
+  side->add_option("--out", side_args->out, "Output directory")->required();
+  side->add_option("--fps", side_args->fps, "Frame rate of the clip")->capture_default_str()->check(
+      CLI::PositiveNumber);
+  side->callback([side_args] { write_side_view(*side_args); });
 }
 
 }  // namespace lipdrive

@@ -236,7 +236,7 @@ void run_process(const ProcessOptions& options) {
     if (result.tracked) times.measures.push_back(result.measures_ms);
     row.clear();
     append_measures_csv_row(row, {frame.sequence, frame.media_time_s, frame.source},
-                            result.tracked ? &result.measures : nullptr,
+                            result.tracked ? &result.measures : nullptr, result.visemes,
                             options.include_landmarks ? &result.landmarks : nullptr);
     row.push_back('\n');
     out.write(row.data(), static_cast<std::streamsize>(row.size()));

@@ -23,6 +23,9 @@ void add_fixture_command(CLI::App& app);
 /// `lipdrive process` (cmd_process.cpp).
 void add_process_command(CLI::App& app);
 
+/// `lipdrive calibrate` (cmd_calibrate.cpp).
+void add_calibrate_command(CLI::App& app);
+
 /// `lipdrive run` (the daemon) and `lipdrive check-config` (cmd_run.cpp).
 void add_run_commands(CLI::App& app);
 

@@ -1,6 +1,8 @@
 #include "firmware_app/config.hpp"
 
+#include "drivers/serial_port.hpp"
 #include "firmware_app/paths.hpp"
+#include "firmware_app/performer_profile.hpp"
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -53,6 +55,30 @@ class Section {
     fail(key, fmt::format("must be true or false, got {}", describe_type(*node)));
   }
 
+  double number(std::string_view key, double fallback, double min, double max) {
+    const toml::node* node = find(key);
+    if (!node) return fallback;
+    const auto value = node->value<double>();  // integers are numbers too
+    if (!value || !(node->is_floating_point() || node->is_integer()))
+      fail(key, fmt::format("must be a number, got {}", describe_type(*node)));
+    if (!(*value >= min && *value <= max)) fail(key, fmt::format("must be between {} and {}, got {}", min, max, *value));
+    return *value;
+  }
+
+  std::vector<std::string> strings(std::string_view key) {
+    const toml::node* node = find(key);
+    std::vector<std::string> values;
+    if (!node) return values;
+    const toml::array* array = node->as_array();
+    if (!array) fail(key, fmt::format("must be an array of strings, got {}", describe_type(*node)));
+    for (const toml::node& element : *array) {
+      const auto value = element.value_exact<std::string>();
+      if (!value) fail(key, fmt::format("must be an array of strings, has {}", describe_type(element)));
+      values.push_back(*value);
+    }
+    return values;
+  }
+
   int integer(std::string_view key, int fallback, int min, int max) {
     const toml::node* node = find(key);
     if (!node) return fallback;
@@ -74,6 +100,28 @@ class Section {
     const toml::node* node = find(key);
     if (node && !node->is_table()) fail(key, fmt::format("must be a table, got {}", describe_type(*node)));
     return Section(file_, node ? node->as_table() : nullptr, key_path(key));
+  }
+
+  /// An array of tables ([[key]]), each named "key[i]" in messages; absent means none.
+  std::vector<Section> tables(std::string_view key) {
+    const toml::node* node = find(key);
+    std::vector<Section> sections;
+    if (!node) return sections;
+    const toml::array* array = node->as_array();
+    if (!array || !array->is_array_of_tables())
+      fail(key, fmt::format("must be an array of tables ([[{}]]), got {}", key_path(key), describe_type(*node)));
+    for (std::size_t i = 0; i < array->size(); ++i)
+      sections.emplace_back(file_, array->get(i)->as_table(), fmt::format("{}[{}]", key_path(key), i));
+    return sections;
+  }
+
+  /// The keys of a sub-table (for tables keyed by name, like `servos = { jaw = 0 }`).
+  std::vector<std::string> keys_of(std::string_view key) const {
+    std::vector<std::string> keys;
+    const toml::node* node = table_ ? table_->get(key) : nullptr;
+    if (node && node->is_table())
+      for (const auto& [name, value] : *node->as_table()) keys.emplace_back(name.str());
+    return keys;
   }
 
   void reject_unknown_keys() const {
@@ -139,8 +187,14 @@ void read_faults(Section faults, SimulatedCameraOptions::FaultInjection& out) {
 }
 
 void read_camera(Section camera, Config& config) {
-  const std::string type = camera.one_of("type", "sim", {"sim", "v4l2"});
-  config.camera.type = type == "sim" ? Config::Camera::Type::kSim : Config::Camera::Type::kV4l2;
+  const std::string type = camera.one_of("type", "sim", {"sim", "v4l2", "libcamera"});
+  config.camera.type = type == "sim"    ? Config::Camera::Type::kSim
+                       : type == "v4l2" ? Config::Camera::Type::kV4l2
+                                        : Config::Camera::Type::kLibcamera;
+#ifndef LIPDRIVE_HAVE_LIBCAMERA
+  if (config.camera.type == Config::Camera::Type::kLibcamera)
+    camera.fail("type", "this build has no libcamera support (configure with -DLIPDRIVE_WITH_LIBCAMERA=ON)");
+#endif
 
   // Both cameras' keys are allowed whatever the type, so switching type is a one-line edit.
   SimulatedCameraOptions& sim = config.camera.sim;
@@ -148,6 +202,7 @@ void read_camera(Section camera, Config& config) {
   sim.input = input.empty() ? default_fixture_path() : fs::path(input);
   sim.real_time = camera.boolean("real_time", true);
   sim.loop = camera.boolean("loop", true);
+  sim.replay_rate = camera.integer("replay_fps", 0, 0, 240);
   read_faults(camera.table("faults"), sim.faults);
 
   V4l2Options& v4l2 = config.camera.v4l2;
@@ -161,11 +216,12 @@ void read_camera(Section camera, Config& config) {
   v4l2.width = static_cast<unsigned>(camera.integer("width", 640, 0, 8192));
   v4l2.height = static_cast<unsigned>(camera.integer("height", 480, 0, 8192));
   v4l2.frame_rate = camera.integer("fps", 60, 1, 240);
+  config.camera.libcamera_id = camera.string("camera_id", "");
   camera.reject_unknown_keys();
 
   if (config.camera.type == Config::Camera::Type::kSim)
     existing(camera, "input", sim.input, "file or folder");
-  else
+  else if (config.camera.type == Config::Camera::Type::kV4l2)
     existing(camera, "device", v4l2.device, "device");
 }
 
@@ -179,6 +235,155 @@ void read_recording(Section recording, Config& config) {
 void read_status(Section status, Config& config) {
   config.status.print_interval_ms = status.integer("print_interval_ms", 1000, 0, 3'600'000);
   status.reject_unknown_keys();
+}
+
+void read_performer(Section performer, Config& config) {
+  Config::Performer& p = config.performer;
+  p.name = performer.string("name", "");
+  p.profiles_dir = performer.string("profiles_dir", "/var/lib/lipdrive/profiles");
+  p.neutral_frames = performer.integer("neutral_frames", 30, kMinNeutralFrames, CalibrationCapture::kCapacity);
+  performer.reject_unknown_keys();
+  if (p.name.empty()) return;
+  try {
+    existing(performer, "name", profile_path(p.profiles_dir, p.name), "performer profile (run `lipdrive calibrate`)");
+  } catch (const std::invalid_argument& e) {
+    performer.fail("name", e.what());
+  }
+}
+
+void read_safety(Section safety, Config& config) {
+  config.safety.hold_ns = std::int64_t{safety.integer("hold_ms", 250, 0, 60'000)} * 1'000'000;
+  config.safety.ease_ns = std::int64_t{safety.integer("ease_ms", 500, 0, 60'000)} * 1'000'000;
+  safety.reject_unknown_keys();
+}
+
+void read_channels(std::vector<Section> channels, Config& config) {
+  if (channels.size() > kMaxChannels) {
+    Section(config.file.string(), nullptr, "").fail("channels", fmt::format("at most {} channels", kMaxChannels));
+  }
+  constexpr double kMaxOut = 65535, kMaxIn = 1e6;
+  for (Section& channel : channels) {
+    ChannelSpec spec;
+    spec.name = channel.string("name", "");
+    if (spec.name.empty()) channel.fail("name", "every channel needs a name");
+    for (const ChannelSpec& other : config.channels)
+      if (other.name == spec.name) channel.fail("name", fmt::format("\"{}\" is already a channel", spec.name));
+    const std::string signal = channel.string("signal", "open");
+    if (const auto parsed = parse_signal(signal)) {
+      spec.signal = *parsed;
+    } else {
+      channel.fail("signal", fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, viseme_<name>)",
+                                         signal));
+    }
+    spec.in_min = channel.number("in_min", 0, -kMaxIn, kMaxIn);
+    spec.in_max = channel.number("in_max", 1, -kMaxIn, kMaxIn);
+    if (spec.in_min == spec.in_max) channel.fail("in_max", "must differ from in_min");
+    spec.out_min = channel.number("out_min", 0, -kMaxOut, kMaxOut);
+    spec.out_max = channel.number("out_max", 1000, -kMaxOut, kMaxOut);
+    spec.neutral = channel.number("neutral", spec.out_min, -kMaxOut, kMaxOut);
+    if (spec.neutral < std::min(spec.out_min, spec.out_max) || spec.neutral > std::max(spec.out_min, spec.out_max))
+      channel.fail("neutral", fmt::format("must lie between out_min {} and out_max {}", spec.out_min, spec.out_max));
+    spec.max_slew_per_s = channel.number("max_slew_per_s", 0, 0, 1e9);
+    spec.invert = channel.boolean("invert", false);
+    Section smoothing = channel.table("smoothing");
+    spec.smoothed = channel.keys_of("smoothing").size() > 0;
+    spec.smoothing.min_cutoff_hz = smoothing.number("min_cutoff_hz", 1.0, 0.01, 1000);
+    spec.smoothing.beta = smoothing.number("beta", 0.0, 0, 1e6);
+    spec.smoothing.d_cutoff_hz = smoothing.number("d_cutoff_hz", 1.0, 0.01, 1000);
+    smoothing.reject_unknown_keys();
+    channel.reject_unknown_keys();
+    config.channels.push_back(std::move(spec));
+  }
+}
+
+/// Channel names an output refers to must exist.
+void check_channel_names(Section& output, std::string_view key, const std::vector<std::string>& names,
+                         const Config& config) {
+  for (const std::string& name : names) {
+    if (std::ranges::none_of(config.channels, [&](const ChannelSpec& c) { return c.name == name; }))
+      output.fail(key, fmt::format("no channel named \"{}\" (see [[channels]])", name));
+  }
+}
+
+SerialLineOptions read_serial_line(Section& section, std::string_view default_device) {
+  SerialLineOptions line;
+  line.device = section.string("device", std::string(default_device));
+  line.baud = section.integer("baud", 115200, 50, 4'000'000);
+  line.parity = section.one_of("parity", "N", {"N", "E", "O"})[0];
+  line.data_bits = section.integer("data_bits", 8, 5, 8);
+  line.stop_bits = section.integer("stop_bits", 1, 1, 2);
+  line.rs485 = section.boolean("rs485", false);
+  try {
+    validate_serial_settings({line.device.string(), line.baud, line.parity, line.data_bits, line.stop_bits, line.rs485});
+  } catch (const std::invalid_argument& e) {
+    section.fail("baud", e.what());
+  }
+  return line;
+}
+
+ModbusLinkOptions read_modbus_link(Section& section) {
+  ModbusLinkOptions link;
+  link.transport = section.one_of("transport", "tcp", {"tcp", "rtu"}) == "tcp" ? ModbusLinkOptions::Transport::kTcp
+                                                                              : ModbusLinkOptions::Transport::kRtu;
+  link.address = section.string("address", "127.0.0.1");
+  link.port = section.integer("port", 1502, 1, 65535);
+  link.line = read_serial_line(section, "/dev/ttyUSB0");
+  link.unit_id = section.integer("unit_id", 1, 1, 247);
+  return link;
+}
+
+void read_outputs(Section outputs, Config& config) {
+  for (Section& server : outputs.tables("modbus_server")) {
+    ModbusServerOptions options;
+    options.link = read_modbus_link(server);
+    options.max_clients = server.integer("max_clients", 8, 1, 64);
+    server.reject_unknown_keys();
+    config.outputs.modbus_servers.push_back(options);
+  }
+  for (Section& client : outputs.tables("modbus_client")) {
+    ModbusClientOptions options;
+    options.link = read_modbus_link(client);
+    options.channels = client.strings("channels");
+    check_channel_names(client, "channels", options.channels, config);
+    options.first_register = client.integer("first_register", 0, 0, 65535);
+    options.rate_hz = client.integer("rate_hz", 50, 1, 1000);
+    options.timeout_ms = client.integer("timeout_ms", 100, 1, 10'000);
+    options.max_backoff_ms = client.integer("max_backoff_ms", 5000, 10, 600'000);
+    client.reject_unknown_keys();
+    config.outputs.modbus_clients.push_back(options);
+  }
+  for (Section& serial : outputs.tables("serial")) {
+    SerialOutputOptions options;
+    const std::string mode = serial.one_of("mode", "framed", {"framed", "line", "maestro"});
+    options.mode = mode == "framed" ? SerialOutputOptions::Mode::kFramed
+                   : mode == "line" ? SerialOutputOptions::Mode::kLine
+                                    : SerialOutputOptions::Mode::kMaestro;
+    options.line = read_serial_line(serial, "/dev/ttyACM0");
+    options.channels = serial.strings("channels");
+    check_channel_names(serial, "channels", options.channels, config);
+    Section servos = serial.table("servos");
+    for (const std::string& channel : serial.keys_of("servos")) {
+      options.servos.push_back({channel, servos.integer(channel, 0, 0, 23)});
+      check_channel_names(servos, channel, {channel}, config);
+    }
+    if (options.mode == SerialOutputOptions::Mode::kMaestro && options.servos.empty())
+      serial.fail("servos", "maestro mode needs servos = { <channel> = <servo number>, ... }");
+    options.max_backoff_ms = serial.integer("max_backoff_ms", 5000, 10, 600'000);
+    serial.reject_unknown_keys();
+    config.outputs.serial.push_back(options);
+  }
+  Section gpio = outputs.table("gpio");
+  GpioOptions& g = config.outputs.gpio;
+  g.enabled = gpio.boolean("enabled", false);
+  g.chip = gpio.string("chip", "gpiochip0");
+  g.status_line = gpio.string("status_line", "");
+  g.fault_line = gpio.string("fault_line", "");
+  g.calibrate_button = gpio.string("calibrate_button", "");
+  g.record_button = gpio.string("record_button", "");
+  g.buttons_active_low = gpio.boolean("buttons_active_low", true);
+  g.debounce_ms = gpio.integer("debounce_ms", 30, 0, 1000);
+  gpio.reject_unknown_keys();
+  outputs.reject_unknown_keys();
 }
 
 }  // namespace
@@ -202,6 +407,10 @@ Config load_config(const fs::path& file) {
   read_camera(top.table("camera"), config);
   read_recording(top.table("recording"), config);
   read_status(top.table("status"), config);
+  read_performer(top.table("performer"), config);
+  read_safety(top.table("safety"), config);
+  read_channels(top.tables("channels"), config);
+  read_outputs(top.table("outputs"), config);
   top.reject_unknown_keys();
   return config;
 }

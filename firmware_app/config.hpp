@@ -103,10 +103,11 @@ struct Config {
   } tracker;
 
   struct Camera {
-    enum class Type { kSim, kV4l2 };
+    enum class Type { kSim, kV4l2, kLibcamera };
     Type type = Type::kSim;
     SimulatedCameraOptions sim;  // input resolved: never empty
     V4l2Options v4l2;
+    std::string libcamera_id;    // "" = the first camera; size and rate as for v4l2
   } camera;
 
   struct Recording {
@@ -118,6 +119,12 @@ struct Config {
   struct Status {
     int print_interval_ms = 1000;  // 0 = off
   } status;
+
+  struct Performer {
+    std::string name;                     // "" = uncalibrated defaults
+    std::filesystem::path profiles_dir;   // <profiles_dir>/<name>.toml
+    int neutral_frames = 30;              // tracked frames of a neutral capture
+  } performer;
 
   SafetySettings safety;
   std::vector<ChannelSpec> channels;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "core/drive_channels.hpp"
+#include "firmware_app/latency_histogram.hpp"
 
 #include <array>
 #include <atomic>
@@ -45,10 +46,16 @@ class Output {
  public:
   virtual ~Output() = default;
   virtual void publish(const DriveFrame& frame) = 0;
+  /// The neutral pose when the pipeline stops: the last frame, which must not be dropped
+  /// where publish() would drop a frame (a busy line). May wait, briefly and boundedly.
+  virtual void publish_last(const DriveFrame& frame) { publish(frame); }
   /// For logs and the status line, e.g. "modbus tcp 127.0.0.1:1502".
   virtual std::string describe() const = 0;
   /// False while the output cannot reach its peer or device (it keeps retrying by itself).
   virtual bool healthy() const { return true; }
+  /// Capture -> on the wire (bytes written, registers acknowledged) for outputs that send
+  /// frames somewhere; nullptr for outputs that only offer them (the Modbus server, GPIO).
+  virtual const LatencyHistogram* wire_latency() const { return nullptr; }
 };
 
 /// Commands from outputs (Modbus control registers, GPIO button) to the daemon, and daemon

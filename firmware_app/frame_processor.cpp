@@ -24,7 +24,9 @@ std::string csv_field(std::string_view text) {
 
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                                std::shared_ptr<const ShapePredictorData> predictor)
-    : fitter_(model, set, settings), reference_(mouth_reference(model)), tracker_(std::move(predictor)) {}
+    : fitter_(model, set, settings), reference_(mouth_reference(model)),
+      visemes_(make_viseme_solver(model)),
+      tracker_(std::move(predictor)) {}
 
 const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   FrameMeasurement& r = result_;
@@ -42,6 +44,7 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   if (!tracker_.check_fit(r.landmarks, fit_.reprojection_error_px)) return r;
   start = Clock::now();
   r.measures = measure_mouth(r.landmarks, fit_, reference_);
+  if (visemes_) r.visemes = visemes_->solve(fit_.coefficients);
   r.measures_ms = ms_since(start);
   r.tracked = true;
   return r;
@@ -50,6 +53,7 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
 std::string measures_csv_header(bool include_landmarks) {
   std::string header =
       "frame,time_s,source,tracked,quality,width_2d,height_2d,width_fit,height_fit,width_3d,height_3d,protrusion_3d";
+  for (std::string_view name : kVisemeNames) header += fmt::format(",viseme_{}", name);
   if (include_landmarks) {
     for (int i = 0; i < kNumLandmarks; ++i) header += fmt::format(",x{}", i);
     for (int i = 0; i < kNumLandmarks; ++i) header += fmt::format(",y{}", i);
@@ -58,14 +62,16 @@ std::string measures_csv_header(bool include_landmarks) {
 }
 
 void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, const MouthMeasures* measures,
-                             const Landmarks2D* landmarks) {
+                             std::span<const float, kNumVisemes> visemes, const Landmarks2D* landmarks) {
   fmt::format_to(std::back_inserter(row), "{},{:.4f},{},", key.frame, key.time_s, csv_field(key.source));
   if (measures) {
     const MouthMeasures& m = *measures;
     fmt::format_to(std::back_inserter(row), "1,{:.4f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}", m.quality,
                    m.width_2d, m.height_2d, m.width_fit, m.height_fit, m.width_3d, m.height_3d, m.protrusion_3d);
+    for (const float weight : visemes) fmt::format_to(std::back_inserter(row), ",{:.4f}", weight);
   } else {
     fmt::format_to(std::back_inserter(row), "0,,,,,,,,");
+    for (int v = 0; v < kNumVisemes; ++v) row.push_back(',');
   }
   if (!landmarks) return;
   for (int axis = 0; axis < 2; ++axis)

@@ -5,12 +5,15 @@
 #include "core/face_tracker.hpp"
 #include "core/fitting.hpp"
 #include "core/mouth_measures.hpp"
+#include "core/viseme_weights.hpp"
 
 #include <fmt/format.h>
 #include <opencv2/core/mat.hpp>
 
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -19,6 +22,7 @@ namespace lipdrive {
 struct FrameMeasurement {
   bool tracked = false;    // a face was tracked and the fit explains it: `measures` is valid
   MouthMeasures measures;
+  VisemeWeights visemes{};  // valid when `tracked`; all zero when the model has no viseme poses
   Landmarks2D landmarks;   // the tracked landmarks, valid when `tracked`
   // Time spent in each stage (ms); NaN when the stage did not run for this frame.
   double landmarks_ms = 0, fit_ms = 0, measures_ms = 0;
@@ -37,6 +41,7 @@ class FrameProcessor {
  private:
   Fitter fitter_;
   MouthReference reference_;
+  std::optional<VisemeSolver> visemes_;  // nullopt: the model lacks the viseme poses
   FaceTracker tracker_;
   FitOutput fit_ = Fitter::initial_output();  // warm start of the next frame
   FrameMeasurement result_;
@@ -49,13 +54,13 @@ struct CsvRowKey {
   std::string_view source;
 };
 
-/// The column names of `lipdrive process` output, without the line end; with
-/// `include_landmarks`, x0..x67,y0..y67 follow.
+/// The column names of `lipdrive process` output, without the line end: the measures, then
+/// viseme_Aah..viseme_W; with `include_landmarks`, x0..x67,y0..y67 follow.
 std::string measures_csv_header(bool include_landmarks);
 
 /// One row under measures_csv_header, without the line end. `measures` null: the frame was
-/// not tracked (empty fields). `landmarks` null: no landmark columns.
+/// not tracked (empty fields; `visemes` is not read). `landmarks` null: no landmark columns.
 void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, const MouthMeasures* measures,
-                             const Landmarks2D* landmarks);
+                             std::span<const float, kNumVisemes> visemes, const Landmarks2D* landmarks);
 
 }  // namespace lipdrive

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   lipdrive::add_plot_command(app);
   lipdrive::add_fixture_command(app);
   lipdrive::add_process_command(app);
+  lipdrive::add_calibrate_command(app);
   lipdrive::add_run_commands(app);
 
   try {

@@ -23,7 +23,10 @@ Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FramePro
       processor_(std::move(processor)),
       settings_(std::move(settings)),
       source_description_(source_->describe()),
-      channels_(settings_.channels, settings_.safety) {
+      channels_(settings_.channels, settings_.safety),
+      // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
+      max_result_age_ns_(source_->frame_rate() > 0 ? static_cast<std::int64_t>(3e9 / source_->frame_rate())
+                                                    : 100'000'000) {
   profile_.publish(PerformerProfile{});
 }
 
@@ -120,9 +123,10 @@ void Pipeline::process(const CapturedFrame& frame) {
   result.tracked = measurement.tracked;
   if (measurement.tracked) {
     result.measures = measurement.measures;
+    result.visemes = measurement.visemes;
     PerformerProfile profile;
     profile_.read(profile);
-    result.signals = drive_signals(measurement.measures, {}, profile);
+    result.signals = drive_signals(measurement.measures, measurement.visemes, profile);
   }
   result.width = frame.gray.cols;
   result.height = frame.gray.rows;
@@ -165,7 +169,12 @@ void Pipeline::output_loop() {
     for (int i = 0; i < channels_.size(); ++i)
       channels_.set_override(i, control_.overrides[static_cast<std::size_t>(i)].load(std::memory_order_relaxed));
     const bool enabled = control_.outputs_enabled.load(std::memory_order_relaxed);
-    channels_.step(result.signals, {.tracked = result.tracked, .enabled = enabled, .now_ns = now});
+    // A tracked result stops counting as tracking the moment the camera goes away or stops
+    // delivering, not when the processing thread next publishes: the hold time starts there.
+    const bool connected = connected_.load(std::memory_order_relaxed);
+    const bool tracked = result.tracked && connected && now - result.capture_time_ns <= max_result_age_ns_;
+    channels_.step(result.signals,
+                   {.tracked = tracked, .enabled = enabled, .now_ns = now, .frame_time_ns = result.capture_time_ns});
 
     // Frames per second over the last second or so.
     if (now - fps_since_ns >= 1'000'000'000) {
@@ -176,30 +185,31 @@ void Pipeline::output_loop() {
       fps_since_ns = now;
     }
     std::uint16_t status = control_.daemon_status.load(std::memory_order_relaxed);
-    if (result.tracked) status |= kStatusTracking;
+    if (tracked) status |= kStatusTracking;
     if (channels_.fail_safe_active()) status |= kStatusFailSafe;
     if (enabled) status |= kStatusOutputsEnabled;
-    if (connected_.load(std::memory_order_relaxed)) status |= kStatusCameraConnected;
+    if (connected) status |= kStatusCameraConnected;
     frame.status = status;
     frame.sequence = result.sequence;
     frame.capture_time_ns = result.capture_time_ns;
     frame.latency_ms = static_cast<float>(ms(result.processed_time_ns - result.capture_time_ns));
-    send(frame, now);
+    fill(frame, now);
+    for (Output* output : outputs_) output->publish(frame);
   }
   // The last thing every output sees: the neutral pose.
   channels_.reset_to_neutral();
   frame.new_result = false;
   frame.status = static_cast<std::uint16_t>((frame.status & ~kStatusTracking) | kStatusFailSafe);
-  send(frame, monotonic_ns());
+  fill(frame, monotonic_ns());
+  for (Output* output : outputs_) output->publish_last(frame);
 }
 
-void Pipeline::send(DriveFrame& frame, std::int64_t now_ns) {
+void Pipeline::fill(DriveFrame& frame, std::int64_t now_ns) {
   ++frame.counter;
   frame.time_ns = now_ns;
   frame.channel_count = channels_.size();
   std::ranges::copy(channels_.values(), frame.values.begin());
   drive_frames_.publish(frame);
-  for (Output* output : outputs_) output->publish(frame);
 }
 
 PipelineStats Pipeline::stats() const {

@@ -39,6 +39,7 @@ struct FrameResult {
   double media_time_s = 0;
   bool tracked = false;
   MouthMeasures measures;               // valid when tracked, zero otherwise
+  VisemeWeights visemes{};              // FrameMeasurement::visemes when tracked, zero otherwise
   DriveSignals signals;                 // calibrated values for the drive, zero when not tracked
   int width = 0, height = 0;            // frame size in pixels
 };
@@ -120,7 +121,8 @@ class Pipeline {
   void capture_loop();
   void processing_loop();
   void output_loop();
-  void send(DriveFrame& frame, std::int64_t now_ns);
+  /// Completes a drive frame from the channel bank and publishes it for readers.
+  void fill(DriveFrame& frame, std::int64_t now_ns);
   void process(const CapturedFrame& frame);
   void ping_watchdog(std::int64_t now_ns);
 
@@ -137,6 +139,7 @@ class Pipeline {
   Published<PerformerProfile> profile_;
   DriveControl control_;
   ChannelBank channels_;  // output thread's
+  std::int64_t max_result_age_ns_;  // older results do not count as tracking
   LatencyHistogram processed_latency_, output_latency_;
 
   std::atomic<std::uint64_t> captured_{0}, processed_{0}, tracked_{0}, lost_track_{0}, disconnects_{0},

@@ -139,7 +139,7 @@ void TakeRecorder::drain() {
   for (; fd_ >= 0 && tail != head; ++tail) {
     const FrameResult& r = ring_[tail % kRingSize];
     append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr,
-                            nullptr);
+                            r.visemes, nullptr);
     fmt::format_to(std::back_inserter(lines_), ",{}\n", r.capture_time_ns);
   }
   // Without an open take the rows are discarded.

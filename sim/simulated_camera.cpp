@@ -87,13 +87,16 @@ SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options) : options_(std:
   for (const auto& image : images_) image_names_.push_back(image.filename().string());
 
   if (kind_ == Kind::kImages) frame_rate_ = options_.image_frame_rate;
+  if (options_.replay_rate > 0) frame_rate_ = options_.replay_rate;
 }
 
 void SimulatedCamera::open_video() {
   if (!capture_.open(video_path_, cv::CAP_FFMPEG))
     throw SourceError(video_path_ + ": not a video or image that can be decoded");
   const double fps = capture_.get(cv::CAP_PROP_FPS);
-  frame_rate_ = std::isfinite(fps) && fps > 0 ? fps : options_.image_frame_rate;
+  frame_rate_ = options_.replay_rate > 0 ? options_.replay_rate
+               : std::isfinite(fps) && fps > 0 ? fps
+                                               : options_.image_frame_rate;
   const double count = capture_.get(cv::CAP_PROP_FRAME_COUNT);
   expected_frames_ = std::isfinite(count) && count > 0 ? static_cast<std::int64_t>(count) : 0;
 }

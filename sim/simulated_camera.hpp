@@ -34,6 +34,8 @@ struct SimulatedCameraOptions {
   bool real_time = false;        // pace at the recording's frame rate; else as fast as possible
   bool loop = false;             // restart at the end instead of reporting kEndOfStream
   double image_frame_rate = 25;  // frames per second for images and folders (and videos without one)
+  double replay_rate = 0;        // > 0: replay at this many frames per second instead (a 60 fps bench
+                                 // from a 25 fps recording); media time follows the replay rate
   FaultInjection faults{};
 };
 

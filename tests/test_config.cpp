@@ -78,8 +78,10 @@ TEST_F(ConfigTest, UnknownKeysAreRejectedAnywhere) {
   EXPECT_THAT(error(), AllOf(HasSubstr(file_.string() + ": key camera.fpz: unknown key")));
   write("", "[camera.faults]\ndrop_evry = 2");
   EXPECT_THAT(error(), HasSubstr(file_.string() + ": key camera.faults.drop_evry: unknown key"));
+  write("", "[ouputs]\nmodbus = true");
+  EXPECT_THAT(error(), HasSubstr(file_.string() + ": key ouputs: unknown key"));
   write("", "[outputs]\nmodbus = true");
-  EXPECT_THAT(error(), HasSubstr(file_.string() + ": key outputs: unknown key"));
+  EXPECT_THAT(error(), HasSubstr(file_.string() + ": key outputs.modbus: unknown key"));
 }
 
 TEST_F(ConfigTest, WrongTypesNameTheExpectedType) {
@@ -139,6 +141,74 @@ CommandRun run_lipdrive(const std::string& args) {
   const int status = ::pclose(pipe);
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return run;
+}
+
+constexpr const char* kJawChannel = "[[channels]]\nname = \"jaw\"\nsignal = \"open\"\nout_min = 1000\nout_max = 2000\n"
+                                    "neutral = 1100\nmax_slew_per_s = 4000\n";
+
+TEST_F(ConfigTest, ChannelsAndOutputsLoad) {
+  write("", fmt::format("{}[[channels]]\nname = \"smile\"\nsignal = \"viseme_Eee\"\ninvert = true\n"
+                        "smoothing = {{ min_cutoff_hz = 2.5, beta = 0.4 }}\n"
+                        "[safety]\nhold_ms = 100\nease_ms = 300\n"
+                        "[[outputs.modbus_server]]\nport = 15020\n"
+                        "[[outputs.modbus_server]]\ntransport = \"rtu\"\ndevice = \"/dev/ttyS1\"\nbaud = 19200\n"
+                        "parity = \"E\"\nunit_id = 7\n"
+                        "[[outputs.serial]]\nmode = \"maestro\"\nservos = {{ jaw = 3 }}\n"
+                        "[[outputs.modbus_client]]\nchannels = [\"smile\", \"jaw\"]\nrate_hz = 20\n",
+                        kJawChannel));
+  const Config config = load_config(file_);
+  ASSERT_EQ(config.channels.size(), 2u);
+  EXPECT_EQ(config.channels[0].name, "jaw");
+  EXPECT_EQ(config.channels[0].out_min, 1000);
+  EXPECT_EQ(config.channels[0].neutral, 1100);
+  EXPECT_EQ(config.channels[0].max_slew_per_s, 4000);
+  EXPECT_EQ(config.channels[1].signal, viseme_signal(5));
+  EXPECT_TRUE(config.channels[1].invert);
+  EXPECT_FALSE(config.channels[0].smoothed);
+  EXPECT_TRUE(config.channels[1].smoothed);
+  EXPECT_EQ(config.channels[1].smoothing.min_cutoff_hz, 2.5);
+  EXPECT_EQ(config.channels[1].smoothing.beta, 0.4);
+  EXPECT_EQ(config.safety.hold_ns, 100'000'000);
+  EXPECT_EQ(config.safety.ease_ns, 300'000'000);
+  ASSERT_EQ(config.outputs.modbus_servers.size(), 2u);
+  EXPECT_EQ(config.outputs.modbus_servers[0].link.port, 15020);
+  EXPECT_EQ(config.outputs.modbus_servers[1].link.transport, ModbusLinkOptions::Transport::kRtu);
+  EXPECT_EQ(config.outputs.modbus_servers[1].link.line.parity, 'E');
+  EXPECT_EQ(config.outputs.modbus_servers[1].link.unit_id, 7);
+  ASSERT_EQ(config.outputs.serial.size(), 1u);
+  EXPECT_EQ(config.outputs.serial[0].mode, SerialOutputOptions::Mode::kMaestro);
+  ASSERT_EQ(config.outputs.serial[0].servos.size(), 1u);
+  EXPECT_EQ(config.outputs.serial[0].servos[0].servo, 3);
+  ASSERT_EQ(config.outputs.modbus_clients.size(), 1u);
+  EXPECT_EQ(config.outputs.modbus_clients[0].channels, (std::vector<std::string>{"smile", "jaw"}));
+}
+
+TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
+  const std::string at = file_.string() + ": key ";
+  write("", "[[channels]]\nname = \"jaw\"\nsignal = \"jaw_open\"");
+  EXPECT_THAT(error(), AllOf(HasSubstr(at + "channels[0].signal: unknown signal \"jaw_open\"")));
+  write("", "[[channels]]\nsignal = \"open\"");
+  EXPECT_THAT(error(), HasSubstr(at + "channels[0].name: every channel needs a name"));
+  write("", "[[channels]]\nname = \"jaw\"\nout_min = 10\nout_max = 20\nneutral = 30");
+  EXPECT_THAT(error(), HasSubstr(at + "channels[0].neutral: must lie between out_min 10 and out_max 20"));
+  write("", std::string(kJawChannel) + kJawChannel);
+  EXPECT_THAT(error(), HasSubstr(at + "channels[1].name: \"jaw\" is already a channel"));
+  write("", std::string(kJawChannel) + "[[outputs.serial]]\nchannels = [\"lips\"]");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].channels: no channel named \"lips\""));
+  write("", std::string(kJawChannel) + "[[outputs.serial]]\nmode = \"maestro\"\nservos = { jaw = 24 }");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].servos.jaw: must be between 0 and 23, got 24"));
+  write("", std::string(kJawChannel) + "[[outputs.serial]]\nmode = \"maestro\"");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].servos: maestro mode needs servos"));
+  write("", "[[outputs.modbus_server]]\nport = 70000");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].port: must be between 1 and 65535, got 70000"));
+  write("", "[outputs]\nmodbus_server = 1");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server: must be an array of tables"));
+  write("", "[[outputs.modbus_server]]\nparity = \"X\"");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].parity: must be one of N, E, O"));
+  write("", "[performer]\nname = \"nobody\"\nprofiles_dir = \"" + dir_.string() + "\"");
+  EXPECT_THAT(error(), HasSubstr(at + "performer.name: no such performer profile"));
+  write("", "[performer]\nname = \"../etc/passwd\"");
+  EXPECT_THAT(error(), HasSubstr(at + "performer.name: performer name"));
 }
 
 TEST_F(ConfigTest, ReferenceFileIsValid) {

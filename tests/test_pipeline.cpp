@@ -8,6 +8,7 @@
 #include "firmware_app/pipeline.hpp"
 #include "firmware_app/take_recorder.hpp"
 #include "allocation_counter.hpp"
+#include "daemon_process.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -26,11 +27,7 @@
 #include <iterator>
 #include <sstream>
 #include <new>
-#include <spawn.h>
 #include <string>
-#include <poll.h>
-#include <sys/socket.h>
-#include <sys/un.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -275,6 +272,58 @@ TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
   EXPECT_GT(output.untracked, 1) << "outputs heard that nothing was tracked while the camera was away";
 }
 
+/// Watches the drive through a camera outage: when tracking was last seen, when the channel
+/// first sat at neutral afterwards, and whether it followed the face again once it was back.
+class OutageWatch : public Output {
+ public:
+  explicit OutageWatch(double neutral) : neutral_(neutral) {}
+  void publish(const DriveFrame& frame) override {
+    const bool tracked = frame.status & kStatusTracking;
+    if (!(frame.status & kStatusCameraConnected)) outage_seen = true;
+    if (!outage_seen) {
+      if (tracked) last_tracked_ns = frame.time_ns;
+      return;
+    }
+    if (neutral_at_ns == 0 && frame.values[0] == neutral_) {
+      neutral_at_ns = frame.time_ns;
+      fail_safe_at_neutral = frame.status & kStatusFailSafe;
+    }
+    if (neutral_at_ns != 0 && tracked && frame.values[0] != neutral_) followed_again = true;
+  }
+  std::string describe() const override { return "outage watch"; }
+
+  std::atomic<bool> outage_seen{false}, fail_safe_at_neutral{false}, followed_again{false};
+  std::atomic<std::int64_t> last_tracked_ns{0}, neutral_at_ns{0};
+
+ private:
+  double neutral_;
+};
+
+TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  options.faults.disconnect_after = 40;
+  options.faults.reconnect = 1500ms;
+  PipelineSettings settings;
+  // Neutral at the open end, where the talking mouth never sits for long.
+  settings.channels = {ChannelSpec{.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 1000}};
+  settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings);
+  OutageWatch watch(1000);
+  pipeline.add_output(watch);
+  pipeline.start();
+  wait_for([&] { return watch.followed_again.load(); }, 30s);
+  pipeline.stop();
+  ASSERT_TRUE(watch.outage_seen);
+  ASSERT_GT(watch.neutral_at_ns, 0) << "the drive never reached neutral while the camera was away";
+  const double to_neutral_ms = static_cast<double>(watch.neutral_at_ns - watch.last_tracked_ns) / 1e6;
+  RecordProperty("loss_to_neutral_ms", std::to_string(to_neutral_ms));
+  // hold + ease, within one output tick (20 ms) and one frame (40 ms) of the last tracked one.
+  EXPECT_NEAR(to_neutral_ms, 500, 60);
+  EXPECT_TRUE(watch.fail_safe_at_neutral);
+  EXPECT_TRUE(watch.followed_again) << "the drive follows the face again after the reconnect";
+}
+
 TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
   Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
   TakeRecorder recorder("clip", 50ms);
@@ -297,67 +346,6 @@ TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
 }
 
 // ---------------------------------------------------------------- `lipdrive run`
-
-/// A `lipdrive run` child process with stderr in a file.
-class Daemon {
- public:
-  Daemon(const fs::path& config, const fs::path& log, const std::string& extra_args = "") : log_(log) {
-    std::vector<std::string> args = {LIPDRIVE_BINARY, "run", "--config", config.string()};
-    for (std::size_t start = 0; start < extra_args.size();) {
-      const std::size_t end = std::min(extra_args.find(' ', start), extra_args.size());
-      if (end > start) args.push_back(extra_args.substr(start, end - start));
-      start = end + 1;
-    }
-    std::vector<char*> argv;
-    for (auto& arg : args) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    EXPECT_EQ(posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ), 0);
-    posix_spawn_file_actions_destroy(&actions);
-  }
-  ~Daemon() {
-    if (pid_ > 0 && !exited_) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-  }
-
-  std::string log() const {
-    std::ifstream in(log_);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  }
-  bool wait_for_log(const std::string& text, std::chrono::seconds limit = 60s) const {
-    const auto deadline = std::chrono::steady_clock::now() + limit;
-    while (std::chrono::steady_clock::now() < deadline) {
-      if (log().find(text) != std::string::npos) return true;
-      std::this_thread::sleep_for(20ms);
-    }
-    return false;
-  }
-  void signal(int number) const { ::kill(pid_, number); }
-  bool running() {
-    int status = 0;
-    return !exited_ && ::waitpid(pid_, &status, WNOHANG) == 0;
-  }
-  /// Exit code, or -1 on a signal or when it is still running after `limit`.
-  int wait(std::chrono::milliseconds limit) {
-    const auto deadline = std::chrono::steady_clock::now() + limit;
-    int status = 0;
-    while (::waitpid(pid_, &status, WNOHANG) == 0) {
-      if (std::chrono::steady_clock::now() > deadline) return -1;
-      std::this_thread::sleep_for(5ms);
-    }
-    exited_ = true;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-
- private:
-  fs::path log_;
-  pid_t pid_ = -1;
-  bool exited_ = false;
-};
 
 class RunTest : public ::testing::Test {
  protected:
@@ -384,7 +372,7 @@ class RunTest : public ::testing::Test {
 
 TEST_F(RunTest, FramesAndStats) {
   write_config();
-  Daemon daemon(config_, dir_ / "stderr.txt", "--frames 50 --stats");
+  test::DaemonProcess daemon(config_, dir_ / "stderr.txt", "--frames 50 --stats");
   EXPECT_EQ(daemon.wait(120s), 0) << daemon.log();
   const std::string log = daemon.log();
   EXPECT_THAT(log, HasSubstr("capture->processed latency: median"));
@@ -396,9 +384,18 @@ TEST_F(RunTest, FramesAndStats) {
   EXPECT_GE(processed, 50u);
 }
 
+#ifdef LIPDRIVE_HAVE_LIBCAMERA
+TEST_F(RunTest, LibcameraWithoutCamerasExitsWithExConfig) {
+  write_config("type = \"libcamera\"");
+  test::DaemonProcess daemon(config_, dir_ / "stderr.txt");
+  EXPECT_EQ(daemon.wait(30s), 78) << daemon.log();
+  EXPECT_THAT(daemon.log(), HasSubstr("key camera.type: libcamera: no cameras found"));
+}
+#endif
+
 TEST_F(RunTest, SigtermStopsWithinOneSecond) {
   write_config("real_time = true");
-  Daemon daemon(config_, dir_ / "stderr.txt");
+  test::DaemonProcess daemon(config_, dir_ / "stderr.txt");
   ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
   std::this_thread::sleep_for(300ms);
   const auto start = std::chrono::steady_clock::now();
@@ -409,7 +406,7 @@ TEST_F(RunTest, SigtermStopsWithinOneSecond) {
 
 TEST_F(RunTest, SighupKeepsRunningOnABadFileAndAppliesAGoodOne) {
   write_config("real_time = true");
-  Daemon daemon(config_, dir_ / "stderr.txt");
+  test::DaemonProcess daemon(config_, dir_ / "stderr.txt");
   ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
 
   write_config("real_time = true\nfps = 500");
@@ -439,7 +436,7 @@ std::vector<std::string> split(const std::string& line) {
 TEST_F(RunTest, RecordWritesCompleteLinesWithTheProcessColumns) {
   const fs::path takes = dir_ / "takes";
   write_config("real_time = false", 0, fmt::format("[recording]\ndir = \"{}\"\nflush_interval_ms = 20", takes.string()));
-  Daemon daemon(config_, dir_ / "stderr.txt", "--record --frames 50 --stats");
+  test::DaemonProcess daemon(config_, dir_ / "stderr.txt", "--record --frames 50 --stats");
   ASSERT_EQ(daemon.wait(120s), 0) << daemon.log();
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(takes)) files.push_back(entry.path());
@@ -475,28 +472,13 @@ TEST_F(RunTest, RecordWritesCompleteLinesWithTheProcessColumns) {
 
 TEST_F(RunTest, TellsSystemdReadyStatusAndFeedsTheWatchdog) {
   write_config("real_time = true", 200);
-  // A stand-in for systemd's notification socket.
-  const fs::path socket_path = dir_ / "notify.sock";
-  const int notify = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  sockaddr_un address{};
-  address.sun_family = AF_UNIX;
-  ASSERT_LT(socket_path.string().size(), sizeof address.sun_path);
-  std::strcpy(address.sun_path, socket_path.c_str());
-  ASSERT_EQ(::bind(notify, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
-  ::setenv("NOTIFY_SOCKET", socket_path.c_str(), 1);
-  ::setenv("WATCHDOG_USEC", "400000", 1);
-  Daemon daemon(config_, dir_ / "stderr.txt");
-  ::unsetenv("NOTIFY_SOCKET");
-  ::unsetenv("WATCHDOG_USEC");
+  test::NotifySocket notify(dir_ / "notify.sock");
+  test::DaemonProcess daemon(config_, dir_ / "stderr.txt", "", {notify.environment(), "WATCHDOG_USEC=400000"});
 
   int ready = 0, status = 0, watchdog = 0;
   const auto deadline = std::chrono::steady_clock::now() + 60s;
   while ((ready == 0 || status < 2 || watchdog < 5) && std::chrono::steady_clock::now() < deadline) {
-    pollfd readable{notify, POLLIN, 0};
-    if (::poll(&readable, 1, 100) != 1) continue;
-    char message[512];
-    const ssize_t size = ::recv(notify, message, sizeof message, 0);
-    const std::string text(message, static_cast<std::size_t>(std::max<ssize_t>(size, 0)));
+    const std::string text = notify.receive(100ms);
     ready += text.find("READY=1") != std::string::npos;
     status += text.find("STATUS=") != std::string::npos && text.find("fps") != std::string::npos;
     watchdog += text.find("WATCHDOG=1") != std::string::npos;
@@ -506,7 +488,6 @@ TEST_F(RunTest, TellsSystemdReadyStatusAndFeedsTheWatchdog) {
   EXPECT_GE(watchdog, 5) << "pings at a fraction of WATCHDOG_USEC";
   daemon.signal(SIGTERM);
   EXPECT_EQ(daemon.wait(2000ms), 0) << daemon.log();
-  ::close(notify);
 }
 
 }  // namespace

@@ -1,0 +1,58 @@
+// Viseme weights from fitted shape coefficients (DESIGN.md 4.2 "coefficients (for viseme
+// weights)"): alpha - alpha_neutral ≈ Σ_v w_v c_v with w >= 0, where c_v = alpha(full pose of
+// viseme v) - alpha(neutral). Solved by non-negative least squares (Lawson & Hanson 1974,
+// "Solving Least Squares Problems", ch. 23, algorithm NNLS) on the fixed-size normal
+// equations, then clamped to [0, 1].
+#pragma once
+
+#include "core/drive_signals.hpp"  // kNumVisemes, kVisemeNames
+#include "core/fitting.hpp"        // kMaxFitComponents
+#include "core/morphable_model.hpp"
+
+#include <Eigen/Core>
+
+#include <array>
+#include <optional>
+
+namespace lipdrive {
+
+using VisemeWeights = std::array<float, kNumVisemes>;
+
+/// Built once per model; solve() allocates nothing and costs a bounded number of 16 x 16
+/// factorisations per frame.
+class VisemeSolver {
+ public:
+  using Coefficients = Eigen::Matrix<double, kMaxFitComponents, 1>;  // FitOutput::coefficients
+  using Gram = Eigen::Matrix<double, kNumVisemes, kNumVisemes>;
+  using Vector = Eigen::Matrix<double, kNumVisemes, 1>;
+
+  /// Uses the model's pose named "neutral" and, per viseme, "<viseme>_100" or else the pose
+  /// named exactly "<viseme>". Throws std::invalid_argument when one of them is missing.
+  explicit VisemeSolver(const MorphableModel& model);
+
+  /// The weights of fitted coefficients (the first num_components() are read), each in [0, 1].
+  VisemeWeights solve(const Coefficients& alpha) const;
+
+  /// 2-norm condition number of the 16 viseme directions: how well the model's components
+  /// tell the 16 visemes apart (large = some are nearly linear combinations of others).
+  double condition_number() const;
+  int num_components() const { return num_components_; }
+
+ private:
+  int num_components_;
+  Coefficients neutral_;                                       // alpha of the neutral pose
+  Eigen::Matrix<double, kMaxFitComponents, kNumVisemes> directions_;  // column v = σ ⊙ c_v
+  Coefficients stddev_;                                        // σ, zero past num_components_
+  Gram gram_;                                                  // directionsᵀ directions
+};
+
+/// The solver of a model that has the poses VisemeSolver needs, else nullopt (a user model
+/// built from other poses: it has no viseme weights).
+std::optional<VisemeSolver> make_viseme_solver(const MorphableModel& model);
+
+/// Lawson–Hanson NNLS on the normal equations: minimises ½ wᵀ G w − hᵀ w over w >= 0, i.e.
+/// ||A w − b||² with G = AᵀA, h = Aᵀb. At most 3·16 outer iterations (the bound Lawson and
+/// Hanson suggest); each inner step drops at least one variable, so it ends too.
+VisemeSolver::Vector nnls_normal_equations(const VisemeSolver::Gram& gram, const VisemeSolver::Vector& h);
+
+}  // namespace lipdrive

@@ -1,0 +1,147 @@
+#include "drivers/gpio_lines.hpp"
+
+#include <gpiod.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <system_error>
+#include <utility>
+
+namespace lipdrive {
+namespace {
+
+constexpr const char* kConsumer = "lipdrive";
+
+/// libgpiod v1 reports failures as std::system_error carrying errno.
+int error_code_of(const std::system_error& error) { return error.code().value(); }
+
+/// Lines of a chip opened with libgpiod 1.6: the chip and the requested line handles.
+///
+/// Closing the chip (dropping its last reference: `chip` and every gpiod::line hold one)
+/// releases the lines it requested, so destroying this object is the whole release.
+class GpiodChipLines final : public GpioLines {
+ public:
+  GpiodChipLines(std::string chip, std::vector<GpioLineSpec> lines)
+      : chip_name_(std::move(chip)), specs_(std::move(lines)) {
+    open();
+  }
+
+  void set_output(const std::string& line, bool active) override {
+    try {
+      requested(line, GpioDirection::kOutput).set_value(active ? 1 : 0);
+    } catch (const std::system_error& error) {
+      fail("line " + line + ": cannot set: " + error.code().message());
+    }
+  }
+
+  bool read_input(const std::string& line) override {
+    try {
+      return requested(line, GpioDirection::kInput).get_value() != 0;
+    } catch (const std::system_error& error) {
+      fail("line " + line + ": cannot read: " + error.code().message());
+    }
+  }
+
+  void reopen() override {
+    close();
+    open();
+  }
+
+  std::string describe() const override { return "gpio " + chip_name_; }
+
+ private:
+  struct Requested {
+    GpioLineSpec spec;
+    gpiod::line line;
+  };
+
+  [[noreturn]] void fail(const std::string& reason) const {
+    throw GpioError("gpio chip " + chip_name_ + ": " + reason);
+  }
+
+  void close() {
+    requested_.clear();
+    chip_.reset();
+  }
+
+  /// Builds the new state in locals and keeps it only when every line was requested: a
+  /// failure half-way closes the chip and with it the lines requested so far.
+  void open() {
+    gpiod::chip chip;
+    try {
+      chip.open(chip_name_, gpiod::chip::OPEN_LOOKUP);
+    } catch (const std::system_error& error) {
+      const int code = error_code_of(error);
+      if (code == ENOENT) fail("no such chip");
+      if (code == ENOTTY || code == EINVAL || code == ENODEV) fail("not a GPIO chip");
+      fail("cannot open: " + error.code().message());
+    }
+    std::vector<Requested> requested;
+    try {
+      for (const GpioLineSpec& spec : specs_) requested.push_back({spec, request(chip, spec)});
+    } catch (const std::system_error& error) {
+      // Looking lines up reads the chip's line info, which fails if the chip goes away now.
+      fail("cannot look up the lines: " + error.code().message());
+    }
+    chip_ = std::move(chip);
+    requested_ = std::move(requested);
+  }
+
+  gpiod::line find(const gpiod::chip& chip, const std::string& line) const {
+    unsigned offset = 0;
+    const char* end = line.data() + line.size();
+    if (!line.empty() && std::from_chars(line.data(), end, offset).ptr == end) {
+      if (offset >= chip.num_lines())
+        fail("line " + line + ": no such offset (the chip has " + std::to_string(chip.num_lines()) +
+             " lines)");
+      return chip.get_line(offset);
+    }
+    gpiod::line found = chip.find_line(line);
+    if (!found) fail("no line named \"" + line + "\"");
+    return found;
+  }
+
+  gpiod::line request(const gpiod::chip& chip, const GpioLineSpec& spec) const {
+    gpiod::line line = find(chip, spec.line);
+    gpiod::line_request config;
+    config.consumer = kConsumer;
+    config.request_type = spec.direction == GpioDirection::kOutput
+                              ? gpiod::line_request::DIRECTION_OUTPUT
+                              : gpiod::line_request::DIRECTION_INPUT;
+    if (spec.active_low) config.flags = gpiod::line_request::FLAG_ACTIVE_LOW;
+    try {
+      line.request(config, 0);
+    } catch (const std::system_error& error) {
+      if (error_code_of(error) == EBUSY)
+        fail("line " + spec.line + ": busy (used by \"" + line.consumer() + "\")");
+      fail("line " + spec.line + ": cannot request: " + error.code().message());
+    }
+    return line;
+  }
+
+  const gpiod::line& requested(const std::string& line, GpioDirection direction) const {
+    const auto found = std::ranges::find_if(requested_, [&](const Requested& candidate) {
+      return candidate.spec.line == line && candidate.spec.direction == direction;
+    });
+    if (found == requested_.end())
+      fail("line " + line + ": not requested as an " +
+           (direction == GpioDirection::kOutput ? "output" : "input") +
+           (chip_ ? "" : " (the chip is closed after a failed reopen)"));
+    return found->line;
+  }
+
+  std::string chip_name_;
+  std::vector<GpioLineSpec> specs_;
+  gpiod::chip chip_;
+  std::vector<Requested> requested_;
+};
+
+}  // namespace
+
+std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip,
+                                           std::vector<GpioLineSpec> lines) {
+  return std::make_unique<GpiodChipLines>(chip, std::move(lines));
+}
+
+}  // namespace lipdrive

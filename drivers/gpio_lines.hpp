@@ -1,0 +1,57 @@
+// GPIO lines of one chip (status lamps, buttons) behind a small interface, and its
+// implementation over libgpiod 1.6 (the v1 C++ API that Debian 12 ships).
+//
+// Lines are named the way the configuration names them: an offset on the chip ("17") or a
+// line name from the device tree ("GPIO17"). All lines are requested when the chip is
+// opened, under the consumer name "lipdrive", and released together when it is closed.
+//
+// Thread model: one thread owns a GpioLines and makes every call on it. No call blocks:
+// setting and reading a line are single ioctls on the chip's line handles.
+#pragma once
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace lipdrive {
+
+/// Any GPIO failure: the message names the chip, the line and the reason.
+class GpioError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class GpioDirection { kOutput, kInput };
+
+struct GpioLineSpec {
+  std::string line;  // offset ("17") or name ("GPIO17")
+  GpioDirection direction = GpioDirection::kOutput;
+  /// The line is active (reads or drives true) at low voltage: buttons that pull to ground.
+  bool active_low = false;
+};
+
+/// The seam between the GPIO logic and the hardware; tests use a fake.
+class GpioLines {
+ public:
+  virtual ~GpioLines() = default;
+  /// Drives an output line to its active (true) or inactive level. Throws GpioError.
+  virtual void set_output(const std::string& line, bool active) = 0;
+  /// Whether an input line is at its active level. Throws GpioError.
+  virtual bool read_input(const std::string& line) = 0;
+  /// Releases everything and opens the chip and requests the lines again, e.g. after the
+  /// chip went away (USB GPIO expander unplugged). Outputs restart inactive. Throws GpioError
+  /// and then holds nothing; a later reopen() may succeed.
+  virtual void reopen() = 0;
+  /// For logs, e.g. "gpio gpiochip0".
+  virtual std::string describe() const = 0;
+};
+
+/// The lines of a real chip through libgpiod. `chip`: a name ("gpiochip0"), a path
+/// ("/dev/gpiochip0"), a label or a number, as gpiodetect shows them. Opens the chip and
+/// requests every line (outputs start inactive); throws GpioError naming the chip and the
+/// line (no such chip, not a GPIO chip, no such line, line busy).
+std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip,
+                                           std::vector<GpioLineSpec> lines);
+
+}  // namespace lipdrive

@@ -1,0 +1,421 @@
+#include "drivers/libcamera_camera.hpp"
+
+#include <sys/mman.h>
+
+#include <libcamera/libcamera.h>
+#include <spdlog/spdlog.h>
+#include <opencv2/core.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <system_error>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+constexpr auto kReconnectInitial = 100ms;
+constexpr auto kReconnectMax = 5000ms;
+
+/// Formats whose first plane is the full-resolution luma, in order of preference.
+const std::array kLumaFirst = {libcamera::formats::YUV420, libcamera::formats::NV12,
+                               libcamera::formats::YVU420, libcamera::formats::NV21,
+                               libcamera::formats::R8};
+
+bool is_luma_first(const libcamera::PixelFormat& format) {
+  return std::ranges::find(kLumaFirst, format) != kLumaFirst.end();
+}
+
+/// libcamera returns negated errno values.
+std::string error_text(int negative_errno) {
+  return std::generic_category().message(-negative_errno);
+}
+
+/// A hold on the process's CameraManager, started while anyone holds it: libcamera allows
+/// a single CameraManager per process, and a front and a side camera must share it. The
+/// count and the manager are guarded by one mutex, so the last holder has stopped and
+/// destroyed the manager before the next one can create it.
+class ManagerLease {
+ public:
+  ManagerLease() {
+    std::lock_guard lock(mutex_);
+    if (users_ == 0) {
+      auto manager = std::make_unique<libcamera::CameraManager>();
+      if (const int error = manager->start(); error < 0)
+        throw SourceError("libcamera: cannot start the camera manager: " + error_text(error));
+      manager_ = std::move(manager);
+    }
+    ++users_;
+  }
+  ~ManagerLease() {
+    std::lock_guard lock(mutex_);
+    if (--users_ == 0) {
+      manager_->stop();
+      manager_.reset();
+    }
+  }
+  ManagerLease(const ManagerLease&) = delete;
+  ManagerLease& operator=(const ManagerLease&) = delete;
+
+  libcamera::CameraManager& manager() const { return *manager_; }
+
+ private:
+  static inline std::mutex mutex_;
+  static inline std::unique_ptr<libcamera::CameraManager> manager_;
+  static inline int users_ = 0;
+};
+
+/// A configured, streaming camera: acquired, its buffers allocated and mapped, every request
+/// queued. Built step by step by open(), so a failure half-way releases exactly what was
+/// taken (the destructor undoes the steps in reverse).
+///
+/// Thread model: the owner thread makes every call; libcamera's thread calls only the two
+/// slots, which touch nothing but `completed_` and `gone_` under `mutex_`.
+class Session {
+ public:
+  static std::unique_ptr<Session> open(std::shared_ptr<libcamera::Camera> camera,
+                                       const LibcameraOptions& options) {
+    std::unique_ptr<Session> session(new Session(std::move(camera)));
+    session->acquire();
+    session->configure(options);
+    session->map_buffers();
+    session->start(options.frame_rate);
+    return session;
+  }
+
+  ~Session() {
+    // stop() completes the requests in flight as cancelled (through the slot) and ends the
+    // callbacks for requests; after it no buffer is in use and the slots can go.
+    if (started_) camera_->stop();
+    // libcamera's signals are not guarded against disconnecting while they emit; after stop()
+    // only a hot-unplug at this very moment could still emit `disconnected` (not guarded).
+    if (connected_) {
+      camera_->requestCompleted.disconnect(this);
+      camera_->disconnected.disconnect(this);
+    }
+    requests_.clear();
+    for (const Mapping& mapping : mappings_) munmap(mapping.base, mapping.length);
+    allocator_.reset();  // frees the buffers
+    if (acquired_) camera_->release();
+  }
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  /// The next completed request, oldest first; nullptr at `deadline` or once the camera is
+  /// gone.
+  libcamera::Request* wait_completed(Clock::time_point deadline) {
+    std::unique_lock lock(mutex_);
+    completed_cv_.wait_until(lock, deadline, [&] { return gone_ || !completed_.empty(); });
+    if (gone_ || completed_.empty()) return nullptr;
+    libcamera::Request* request = completed_.front();
+    completed_.erase(completed_.begin());
+    return request;
+  }
+
+  bool gone() const {
+    std::lock_guard lock(mutex_);
+    return gone_;
+  }
+
+  /// Hands a completed request back with its buffer; false if the camera refused it.
+  bool requeue(libcamera::Request* request) {
+    request->reuse(libcamera::Request::ReuseBuffers);
+    return camera_->queueRequest(request) == 0;
+  }
+
+  const libcamera::FrameMetadata& metadata(const libcamera::Request& request) const {
+    return request.findBuffer(stream_)->metadata();
+  }
+  /// Wraps the luma plane of a completed request's buffer (no copy).
+  cv::Mat luma(const libcamera::Request& request) const {
+    return cv::Mat(static_cast<int>(height_), static_cast<int>(width_), CV_8UC1,
+                   mappings_[request.cookie()].luma, stride_);
+  }
+  double frame_rate() const { return frame_rate_; }
+
+ private:
+  struct Mapping {
+    void* base;
+    std::size_t length;
+    std::uint8_t* luma;
+  };
+
+  explicit Session(std::shared_ptr<libcamera::Camera> camera) : camera_(std::move(camera)) {}
+
+  [[noreturn]] void fail(const std::string& reason) const {
+    throw SourceError("libcamera " + camera_->id() + ": " + reason);
+  }
+
+  void acquire() {
+    if (const int error = camera_->acquire(); error < 0)
+      fail(error == -EBUSY ? "busy (in use by another process or source)"
+                           : "cannot acquire: " + error_text(error));
+    acquired_ = true;
+  }
+
+  void configure(const LibcameraOptions& options) {
+    // libcamera API: 0.0.3 takes a StreamRoles vector, 0.1+ a Span<const StreamRole>; a
+    // std::vector converts to both.
+    const std::vector<libcamera::StreamRole> roles{libcamera::StreamRole::Viewfinder};
+    const std::unique_ptr<libcamera::CameraConfiguration> config =
+        camera_->generateConfiguration(roles);
+    if (!config || config->empty()) fail("offers no viewfinder stream");
+    libcamera::StreamConfiguration& stream = config->at(0);
+
+    const std::vector<libcamera::PixelFormat> offered = stream.formats().pixelformats();
+    const auto chosen = std::ranges::find_if(kLumaFirst, [&](const libcamera::PixelFormat& format) {
+      return std::ranges::find(offered, format) != offered.end();
+    });
+    if (chosen == kLumaFirst.end()) {
+      std::string list;
+      for (const auto& format : offered) list += (list.empty() ? "" : ", ") + format.toString();
+      fail("offers none of YUV420, NV12, YVU420, NV21, R8 (offers: " +
+           (list.empty() ? "none" : list) + ")");
+    }
+    stream.pixelFormat = *chosen;
+    if (options.width) stream.size.width = options.width;
+    if (options.height) stream.size.height = options.height;
+
+    const std::string requested = stream.toString();
+    switch (config->validate()) {
+      case libcamera::CameraConfiguration::Invalid:
+        fail("cannot stream " + requested);
+      case libcamera::CameraConfiguration::Adjusted:
+        spdlog::info("libcamera {}: asked for {}, streams {}", camera_->id(), requested,
+                     stream.toString());
+        break;
+      case libcamera::CameraConfiguration::Valid:
+        break;
+    }
+    if (!is_luma_first(stream.pixelFormat))
+      fail("adjusted the format to " + stream.pixelFormat.toString() +
+           ", which has no luma plane first");
+    if (const int error = camera_->configure(config.get()); error < 0)
+      fail("cannot configure " + stream.toString() + ": " + error_text(error));
+
+    stream_ = stream.stream();
+    width_ = stream.size.width;
+    height_ = stream.size.height;
+    stride_ = stream.stride;
+  }
+
+  void map_buffers() {
+    allocator_ = std::make_unique<libcamera::FrameBufferAllocator>(camera_);
+    if (const int error = allocator_->allocate(stream_); error < 0)
+      fail("cannot allocate buffers: " + error_text(error));
+    for (const std::unique_ptr<libcamera::FrameBuffer>& buffer : allocator_->buffers(stream_)) {
+      // The luma plane is the first; it may share its dmabuf with the chroma planes at an
+      // offset, and mmap needs a page-aligned file offset, so the map starts at 0.
+      const libcamera::FrameBuffer::Plane& plane = buffer->planes().front();
+      if (plane.offset == libcamera::FrameBuffer::Plane::kInvalidOffset)
+        fail("buffer plane without an offset");
+      if (plane.length < std::size_t{stride_} * height_)
+        fail("buffer luma plane shorter than stride x height");
+      const std::size_t length = std::size_t{plane.offset} + plane.length;
+      void* base = mmap(nullptr, length, PROT_READ, MAP_SHARED, plane.fd.get(), 0);
+      if (base == MAP_FAILED) fail("cannot map a buffer: " + error_text(-errno));
+      mappings_.push_back({base, length, static_cast<std::uint8_t*>(base) + plane.offset});
+
+      // The cookie is the buffer's index in mappings_.
+      std::unique_ptr<libcamera::Request> request = camera_->createRequest(mappings_.size() - 1);
+      if (!request) fail("cannot create a request");
+      if (const int error = request->addBuffer(stream_, buffer.get()); error < 0)
+        fail("cannot add a buffer to a request: " + error_text(error));
+      requests_.push_back(std::move(request));
+    }
+    // Every request is in flight or completed at most once: push_back never reallocates
+    // on libcamera's thread.
+    completed_.reserve(requests_.size());
+  }
+
+  void start(int frame_rate) {
+    camera_->requestCompleted.connect(this, &Session::on_request_completed);
+    camera_->disconnected.connect(this, &Session::on_disconnected);
+    connected_ = true;
+
+    libcamera::ControlList controls(libcamera::controls::controls);
+    if (frame_rate > 0) {
+      if (camera_->controls().count(&libcamera::controls::FrameDurationLimits)) {
+        const std::int64_t frame_us = 1'000'000 / frame_rate;
+        const std::array<std::int64_t, 2> limits{frame_us, frame_us};
+        // libcamera API: a Span is accepted by every version for array controls.
+        controls.set(libcamera::controls::FrameDurationLimits,
+                     libcamera::Span<const std::int64_t, 2>(limits));
+        frame_rate_ = frame_rate;
+      } else {
+        spdlog::warn("libcamera {}: no frame duration control; {} fps not applied", camera_->id(),
+                     frame_rate);
+      }
+    }
+    if (const int error = camera_->start(&controls); error < 0)
+      fail("cannot start: " + error_text(error));
+    started_ = true;
+    for (const auto& request : requests_)
+      if (const int error = camera_->queueRequest(request.get()); error < 0)
+        fail("cannot queue a request: " + error_text(error));
+  }
+
+  // libcamera's thread.
+  void on_request_completed(libcamera::Request* request) {
+    {
+      std::lock_guard lock(mutex_);
+      completed_.push_back(request);
+    }
+    completed_cv_.notify_one();
+  }
+  void on_disconnected() {
+    {
+      std::lock_guard lock(mutex_);
+      gone_ = true;
+    }
+    completed_cv_.notify_one();
+  }
+
+  std::shared_ptr<libcamera::Camera> camera_;
+  bool acquired_ = false;
+  bool connected_ = false;  // the slots are connected
+  bool started_ = false;
+  libcamera::Stream* stream_ = nullptr;
+  unsigned width_ = 0, height_ = 0, stride_ = 0;
+  double frame_rate_ = 0;
+  std::unique_ptr<libcamera::FrameBufferAllocator> allocator_;
+  std::vector<Mapping> mappings_;  // by request cookie
+  std::vector<std::unique_ptr<libcamera::Request>> requests_;
+
+  mutable std::mutex mutex_;
+  std::condition_variable completed_cv_;
+  std::vector<libcamera::Request*> completed_;  // completed, not yet taken by grab()
+  bool gone_ = false;                           // libcamera reported the camera unplugged
+};
+
+}  // namespace
+
+class LibcameraCamera::Impl {
+ public:
+  explicit Impl(LibcameraOptions options) : options_(std::move(options)) {
+    const auto cameras = lease_.manager().cameras();
+    if (cameras.empty()) throw SourceError("libcamera: no cameras found");
+    if (options_.camera_id.empty()) options_.camera_id = cameras.front()->id();
+    description_ = "libcamera:" + options_.camera_id;
+    session_ = Session::open(find_camera(), options_);
+    frame_rate_ = session_->frame_rate();
+  }
+
+  GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) {
+    const Clock::time_point deadline = Clock::now() + timeout;
+    if (!session_ && !reconnect_before(deadline)) return GrabStatus::kDisconnected;
+    if (held_ && !session_->requeue(std::exchange(held_, nullptr))) return disconnect();
+
+    libcamera::Request* request = session_->wait_completed(deadline);
+    if (!request) return session_->gone() ? disconnect() : GrabStatus::kTimeout;
+
+    const libcamera::FrameMetadata& metadata = session_->metadata(*request);
+    if (request->status() != libcamera::Request::RequestComplete ||
+        metadata.status != libcamera::FrameMetadata::FrameSuccess) {
+      return session_->requeue(request) ? GrabStatus::kCorrupt : disconnect();
+    }
+    held_ = request;
+    // The buffer timestamp is the kernel's CLOCK_MONOTONIC capture time, in ns.
+    const auto capture_ns = static_cast<std::int64_t>(metadata.timestamp);
+    if (first_capture_ns_ < 0) first_capture_ns_ = capture_ns;
+    frame.gray = session_->luma(*request);
+    frame.capture_time_ns = capture_ns;
+    frame.sequence = sequence_for(metadata.sequence);
+    frame.media_time_s = static_cast<double>(capture_ns - first_capture_ns_) * 1e-9;
+    frame.source = description_;
+    return GrabStatus::kFrame;
+  }
+
+  double frame_rate() const { return frame_rate_; }
+  const std::string& describe() const { return description_; }
+
+ private:
+  std::shared_ptr<libcamera::Camera> find_camera() {
+    if (auto camera = lease_.manager().get(options_.camera_id)) return camera;
+    std::string ids;
+    for (const auto& camera : lease_.manager().cameras())
+      ids += (ids.empty() ? "" : ", ") + camera->id();
+    throw SourceError("libcamera: no camera \"" + options_.camera_id +
+                      "\" (cameras: " + (ids.empty() ? "none" : ids) + ")");
+  }
+
+  GrabStatus disconnect() {
+    spdlog::warn("{}: camera disconnected", description_);
+    held_ = nullptr;
+    session_.reset();
+    stream_started_ = false;
+    reconnect_delay_ = kReconnectInitial;
+    next_reconnect_ = Clock::now() + reconnect_delay_;
+    return GrabStatus::kDisconnected;
+  }
+
+  /// Tries to reopen the camera once the back-off allows, waiting for that no later than
+  /// `deadline`.
+  bool reconnect_before(Clock::time_point deadline) {
+    if (Clock::now() < next_reconnect_) {
+      std::this_thread::sleep_until(std::min(deadline, next_reconnect_));
+      if (Clock::now() < next_reconnect_) return false;
+    }
+    try {
+      session_ = Session::open(find_camera(), options_);
+    } catch (const SourceError& error) {
+      spdlog::debug("{}: reconnect failed: {}", description_, error.what());
+      reconnect_delay_ = std::min(2 * reconnect_delay_, std::chrono::milliseconds(kReconnectMax));
+      next_reconnect_ = Clock::now() + reconnect_delay_;
+      return false;
+    }
+    spdlog::info("{}: camera reconnected", description_);
+    return true;
+  }
+
+  /// Frame::sequence keeps counting across reconnects; libcamera restarts its own numbering
+  /// with every start(), and its gaps are lost frames.
+  std::uint64_t sequence_for(std::uint32_t camera_sequence) {
+    if (!stream_started_) {
+      stream_started_ = true;
+      stream_base_ = next_sequence_;
+      first_camera_sequence_ = camera_sequence;
+    }
+    const std::uint64_t sequence = stream_base_ + (camera_sequence - first_camera_sequence_);
+    next_sequence_ = sequence + 1;
+    return sequence;
+  }
+
+  // Declared first, destroyed last: the session releases its camera before the manager stops.
+  ManagerLease lease_;
+  LibcameraOptions options_;
+  std::string description_;
+  double frame_rate_ = 0;
+  std::unique_ptr<Session> session_;
+  libcamera::Request* held_ = nullptr;  // the request whose buffer the caller's frame shows
+
+  bool stream_started_ = false;
+  std::uint64_t stream_base_ = 0;
+  std::uint64_t next_sequence_ = 0;
+  std::uint32_t first_camera_sequence_ = 0;
+  std::int64_t first_capture_ns_ = -1;
+
+  std::chrono::milliseconds reconnect_delay_{0};
+  Clock::time_point next_reconnect_{};
+};
+
+LibcameraCamera::LibcameraCamera(LibcameraOptions options)
+    : impl_(std::make_unique<Impl>(std::move(options))) {}
+LibcameraCamera::~LibcameraCamera() = default;
+
+GrabStatus LibcameraCamera::grab(Frame& frame, std::chrono::milliseconds timeout) {
+  return impl_->grab(frame, timeout);
+}
+double LibcameraCamera::frame_rate() const { return impl_->frame_rate(); }
+std::string LibcameraCamera::describe() const { return impl_->describe(); }
+
+}  // namespace lipdrive

@@ -1,0 +1,215 @@
+#include "drivers/modbus_server.hpp"
+
+#include <fmt/format.h>
+#include <modbus/modbus-tcp.h>
+#include <spdlog/spdlog.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <sys/eventfd.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <cstring>
+#include <optional>
+#include <stdexcept>
+
+namespace lipdrive {
+
+UniqueFd& UniqueFd::operator=(UniqueFd&& other) noexcept {
+  if (this != &other) {
+    if (fd_ != -1) ::close(fd_);
+    fd_ = std::exchange(other.fd_, -1);
+  }
+  return *this;
+}
+
+UniqueFd::~UniqueFd() {
+  if (fd_ != -1) ::close(fd_);
+}
+
+namespace {
+
+constexpr int kReopenIntervalMs = 1000;  // RTU: how often a failed serial line is reopened
+
+/// The holding registers a request writes and the values they get, decoded from the request
+/// itself so that the owner hears of a write before the acknowledgement goes out. Empty when
+/// the request writes nothing or libmodbus will reject it: the checks mirror modbus_reply(),
+/// so a request answered with an exception is never reported as a write.
+struct Write {
+  int address = 0;
+  std::span<const std::uint16_t> values;
+};
+
+std::optional<Write> decode_write(const std::uint8_t* pdu, std::span<const std::uint16_t> holding,
+                                  std::span<std::uint16_t> buffer) {
+  const auto word = [pdu](int at) { return static_cast<std::uint16_t>((pdu[at] << 8) | pdu[at + 1]); };
+  const auto fits = [&](int address, int count) {
+    return count >= 1 && address + count <= static_cast<int>(holding.size());
+  };
+  // Function 16 and 23 carry `count` values from `first_value` on.
+  const auto block = [&](int address, int count, int byte_count_at, int max_count) -> std::optional<Write> {
+    if (count > max_count || pdu[byte_count_at] != 2 * count || !fits(address, count)) return std::nullopt;
+    for (int i = 0; i < count; ++i) buffer[static_cast<std::size_t>(i)] = word(byte_count_at + 1 + 2 * i);
+    return Write{address, buffer.first(static_cast<std::size_t>(count))};
+  };
+  switch (pdu[0]) {
+    case MODBUS_FC_WRITE_SINGLE_REGISTER:
+      if (!fits(word(1), 1)) return std::nullopt;
+      buffer[0] = word(3);
+      return Write{word(1), buffer.first(1)};
+    case MODBUS_FC_MASK_WRITE_REGISTER: {
+      if (!fits(word(1), 1)) return std::nullopt;
+      const std::uint16_t and_mask = word(3), or_mask = word(5);
+      buffer[0] = static_cast<std::uint16_t>((holding[word(1)] & and_mask) | (or_mask & ~and_mask));
+      return Write{word(1), buffer.first(1)};
+    }
+    case MODBUS_FC_WRITE_MULTIPLE_REGISTERS:
+      return block(word(1), word(3), 5, MODBUS_MAX_WRITE_REGISTERS);
+    case MODBUS_FC_WRITE_AND_READ_REGISTERS:
+      if (word(3) > MODBUS_MAX_WR_READ_REGISTERS || !fits(word(1), word(3))) return std::nullopt;
+      return block(word(5), word(7), 9, MODBUS_MAX_WR_WRITE_REGISTERS);
+    default:
+      return std::nullopt;
+  }
+}
+
+void set_timeouts(modbus_t* context) {
+  constexpr std::uint32_t us = ModbusServer::kByteTimeoutMs * 1000;
+  modbus_set_byte_timeout(context, 0, us);
+  // Requests are only read once poll() saw data, so this only guards against a spurious wake-up.
+  modbus_set_indication_timeout(context, 0, us);
+}
+
+}  // namespace
+
+ModbusServer::ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int input_registers,
+                           int holding_registers, Refresh refresh, Written written)
+    : endpoint_(endpoint),
+      max_clients_(max_clients),
+      refresh_(std::move(refresh)),
+      written_(std::move(written)),
+      context_(make_context(endpoint)),
+      mapping_(modbus_mapping_new(0, 0, holding_registers, input_registers)),
+      wake_fd_(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)),
+      query_(MODBUS_TCP_MAX_ADU_LENGTH) {
+  if (!mapping_ || wake_fd_.get() == -1)
+    throw std::runtime_error(fmt::format("modbus server {}: {}", describe(), std::strerror(errno)));
+  set_timeouts(context_.get());
+  if (endpoint.transport == ModbusEndpoint::Transport::kTcp) {
+    listen_fd_ = UniqueFd(modbus_tcp_listen(context_.get(), max_clients));
+    sockaddr_in bound{};
+    socklen_t size = sizeof bound;
+    if (listen_fd_.get() == -1 || ::getsockname(listen_fd_.get(), reinterpret_cast<sockaddr*>(&bound), &size) == -1)
+      throw std::runtime_error(fmt::format("modbus server {}: cannot listen: {}", describe(), modbus_strerror(errno)));
+    port_ = ntohs(bound.sin_port);
+    thread_ = std::thread(&ModbusServer::serve_tcp, this);
+  } else {
+    if (!connect_context(context_.get(), endpoint_))
+      throw std::runtime_error(fmt::format("modbus server {}: cannot open: {}", describe(), modbus_strerror(errno)));
+    thread_ = std::thread(&ModbusServer::serve_rtu, this);
+  }
+  spdlog::info("modbus server {}: serving {} input and {} holding registers", describe(), input_registers,
+               holding_registers);
+}
+
+ModbusServer::~ModbusServer() {
+  stopping_.store(true, std::memory_order_relaxed);
+  const std::uint64_t one = 1;
+  [[maybe_unused]] const ssize_t ignored = ::write(wake_fd_.get(), &one, sizeof one);
+  thread_.join();
+  modbus_set_socket(context_.get(), -1);  // client sockets were the thread's; the listener is listen_fd_'s
+}
+
+std::string ModbusServer::describe() const {
+  if (endpoint_.transport == ModbusEndpoint::Transport::kTcp && port_ != 0)
+    return fmt::format("tcp {}:{}", endpoint_.address, port_);
+  return lipdrive::describe(endpoint_);
+}
+
+short ModbusServer::wait_readable(int fd, int timeout_ms) {
+  pollfd fds[2] = {{wake_fd_.get(), POLLIN, 0}, {fd, POLLIN, 0}};
+  while (::poll(fds, 2, timeout_ms) == -1 && errno == EINTR) {
+  }
+  return fds[0].revents ? 0 : fds[1].revents;
+}
+
+bool ModbusServer::answer_one() {
+  modbus_t* context = context_.get();
+  const int length = modbus_receive(context, query_.data());
+  if (length == -1) return false;
+  if (length == 0) return true;  // RTU: addressed to another unit
+  refresh_({mapping_->tab_input_registers, static_cast<std::size_t>(mapping_->nb_input_registers)},
+           {mapping_->tab_registers, static_cast<std::size_t>(mapping_->nb_registers)});
+  std::array<std::uint16_t, MODBUS_MAX_WRITE_REGISTERS> values;
+  if (const std::optional<Write> write =
+          decode_write(query_.data() + modbus_get_header_length(context),
+                       {mapping_->tab_registers, static_cast<std::size_t>(mapping_->nb_registers)}, values))
+    written_(write->address, write->values);
+  if (modbus_reply(context, query_.data(), length, mapping_.get()) == -1) return false;
+  requests_.fetch_add(1, std::memory_order_relaxed);
+  return true;
+}
+
+void ModbusServer::serve_tcp() {
+  std::vector<UniqueFd> clients;
+  std::vector<pollfd> fds;
+  bool refusing = false;  // log a full server once, not once per refused connection
+  while (!stopping_.load(std::memory_order_relaxed)) {
+    fds.assign({{wake_fd_.get(), POLLIN, 0}, {listen_fd_.get(), POLLIN, 0}});
+    for (const UniqueFd& client : clients) fds.push_back({client.get(), POLLIN, 0});
+    if (::poll(fds.data(), fds.size(), -1) == -1) continue;  // EINTR
+    if (fds[0].revents) break;
+    // One request per readable client per round, so a flooding client cannot starve the others.
+    for (std::size_t i = clients.size(); i-- > 0;) {
+      if (!fds[i + 2].revents) continue;
+      modbus_set_socket(context_.get(), clients[i].get());
+      const bool keep = answer_one();
+      modbus_set_socket(context_.get(), -1);
+      if (!keep) {
+        spdlog::debug("modbus server {}: dropped a client ({})", describe(), modbus_strerror(errno));
+        clients.erase(clients.begin() + static_cast<std::ptrdiff_t>(i));
+        refusing = false;
+      }
+    }
+    if (!(fds[1].revents & POLLIN)) continue;
+    UniqueFd client(::accept4(listen_fd_.get(), nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK));
+    if (client.get() == -1) continue;
+    if (static_cast<int>(clients.size()) >= max_clients_) {
+      if (!std::exchange(refusing, true))
+        spdlog::warn("modbus server {}: refusing connections, {} clients already", describe(), max_clients_);
+      continue;  // closed by UniqueFd
+    }
+    const int on = 1;
+    ::setsockopt(client.get(), IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);  // replies go out at once
+    clients.push_back(std::move(client));
+  }
+}
+
+void ModbusServer::serve_rtu() {
+  modbus_t* context = context_.get();
+  while (!stopping_.load(std::memory_order_relaxed)) {
+    if (!healthy_.load(std::memory_order_relaxed)) {
+      if (wait_readable(-1, kReopenIntervalMs) == 0 && stopping_.load(std::memory_order_relaxed)) break;
+      if (!connect_context(context, endpoint_)) continue;
+      spdlog::info("modbus server {}: serial line open again", describe());
+      healthy_.store(true, std::memory_order_relaxed);
+    }
+    const short events = wait_readable(modbus_get_socket(context), -1);
+    if (events == 0) break;  // stop
+    if (events & (POLLHUP | POLLERR | POLLNVAL)) {
+      spdlog::error("modbus server {}: serial line failed; reopening every {} ms", describe(), kReopenIntervalMs);
+      modbus_close(context);
+      healthy_.store(false, std::memory_order_relaxed);
+      continue;
+    }
+    // A frame with a bad CRC or one cut short: discard what is left of it and listen on.
+    if (!answer_one()) modbus_flush(context);
+  }
+}
+
+}  // namespace lipdrive

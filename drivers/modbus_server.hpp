@@ -1,0 +1,98 @@
+// A Modbus slave (server) over TCP or RTU on libmodbus 3.1. Never includes core/.
+//
+// Thread model: the constructor binds the socket or opens the serial device, then one
+// thread of its own owns the libmodbus context and the register mapping until destruction.
+// The owner's callbacks run on that thread: `refresh` fills the mapping before every request
+// is answered, so a reply always shows the newest state; `written` reports what a request
+// writes to holding registers before the acknowledgement goes out, so a master that has its
+// acknowledgement knows the owner has seen the write. Out-of-range addresses, unknown function codes and
+// bad counts get Modbus exception responses from libmodbus; a TCP client that sends something
+// unparseable is disconnected without disturbing the others.
+#pragma once
+
+#include "drivers/modbus_link.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace lipdrive {
+
+/// An owned file descriptor (closed on destruction).
+class UniqueFd {
+ public:
+  UniqueFd() = default;
+  explicit UniqueFd(int fd) : fd_(fd) {}
+  UniqueFd(UniqueFd&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
+  UniqueFd& operator=(UniqueFd&& other) noexcept;
+  ~UniqueFd();
+  int get() const { return fd_; }
+
+ private:
+  int fd_ = -1;
+};
+
+class ModbusServer {
+ public:
+  /// Fills the input and holding registers (their whole extent) before a request is answered.
+  using Refresh = std::function<void(std::span<std::uint16_t> input, std::span<std::uint16_t> holding)>;
+  /// A request writes `values` to holding registers from `address` on (the reply follows).
+  using Written = std::function<void(int address, std::span<const std::uint16_t> values)>;
+
+  /// Serves `input_registers` input and `holding_registers` holding registers at address 0.
+  /// TCP: listens on endpoint.address:endpoint.port (port 0: any free port, see port()) and
+  /// serves up to max_clients connections at once. RTU: answers requests for endpoint.unit_id.
+  /// Throws std::runtime_error when the port cannot be bound or the device opened.
+  ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int input_registers, int holding_registers,
+               Refresh refresh, Written written);
+  /// Stops the thread (promptly: it never waits longer than kByteTimeout) and closes everything.
+  ~ModbusServer();
+  ModbusServer(const ModbusServer&) = delete;
+  ModbusServer& operator=(const ModbusServer&) = delete;
+
+  /// TCP: the port actually bound.
+  int port() const { return port_; }
+  /// "tcp 0.0.0.0:1502" or "rtu /dev/ttyUSB0 ...".
+  std::string describe() const;
+  /// False after the serial line failed (unplugged adapter); the server reopens it by itself.
+  bool healthy() const { return healthy_.load(std::memory_order_relaxed); }
+  /// Requests answered (normally or with an exception).
+  std::uint64_t requests() const { return requests_.load(std::memory_order_relaxed); }
+
+  /// How long a request may take to arrive completely once its first byte is there: bounds
+  /// how long one slow or broken peer holds up the others and how long destruction waits.
+  static constexpr int kByteTimeoutMs = 50;
+
+ private:
+  void serve_tcp();
+  void serve_rtu();
+  /// Reads one request from the context's current socket and answers it. False when the
+  /// peer is gone or sent something that is not a request (the connection is then dropped).
+  bool answer_one();
+  /// Blocks until `fd` is readable or stop; the poll result for `fd`, 0 on stop.
+  short wait_readable(int fd, int timeout_ms);
+
+  ModbusEndpoint endpoint_;
+  int max_clients_;
+  Refresh refresh_;
+  Written written_;
+  struct MappingDeleter {
+    void operator()(modbus_mapping_t* mapping) const { modbus_mapping_free(mapping); }
+  };
+  ModbusContext context_;                                      // the server thread's
+  std::unique_ptr<modbus_mapping_t, MappingDeleter> mapping_;  // the server thread's
+  UniqueFd listen_fd_;                                         // tcp
+  UniqueFd wake_fd_;  // eventfd: destruction wakes the server thread out of poll()
+  int port_ = 0;
+  std::vector<std::uint8_t> query_;
+  std::atomic<bool> stopping_{false}, healthy_{true};
+  std::atomic<std::uint64_t> requests_{0};
+  std::thread thread_;
+};
+
+}  // namespace lipdrive

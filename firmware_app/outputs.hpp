@@ -1,0 +1,17 @@
+// The drive outputs a configuration asks for (Modbus servers and clients, serial lines, GPIO).
+#pragma once
+
+#include "firmware_app/config.hpp"
+#include "firmware_app/drive_output.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace lipdrive {
+
+/// One output per configured entry, in the order of the file. Devices that are missing or go
+/// away are retried by each output on its own; only what can never work (a GPIO chip or line
+/// that does not exist) throws ConfigError.
+std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveControl& control);
+
+}  // namespace lipdrive

@@ -1,0 +1,110 @@
+// The calibration round trip on a real talking face: `lipdrive calibrate` on a GRID take,
+// then the pipeline drives an open channel with that profile. The performer's mouth must use
+// the whole channel and come back to rest in the closing silence.
+#include "daemon_process.hpp"
+#include "firmware_app/model_files.hpp"
+#include "firmware_app/performer_profile.hpp"
+#include "firmware_app/pipeline.hpp"
+#include "shared_predictor.hpp"
+#include "sim/simulated_camera.hpp"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <map>
+#include <mutex>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+const fs::path kTake = fs::path(LIPDRIVE_SHARED_FIXTURES) / "grid" / "bbaf2n.mpg";
+constexpr std::uint64_t kFinalSilenceFrom = 54;  // bbaf2n.align: "53000 74500 sil", frames 54..74
+
+/// The open channel's value for every processed frame, by source frame.
+class OpenChannelByFrame : public Output {
+ public:
+  void publish(const DriveFrame& frame) override {
+    if (!frame.new_result || !(frame.status & kStatusTracking)) return;
+    std::lock_guard lock(mutex_);
+    values_[frame.sequence] = frame.values[0];
+  }
+  std::string describe() const override { return "open by frame"; }
+  std::map<std::uint64_t, double> values() const {
+    std::lock_guard lock(mutex_);
+    return values_;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<std::uint64_t, double> values_;
+};
+
+TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
+  if (!fs::exists(kTake)) GTEST_SKIP() << "no shared fixtures at " << kTake;
+  const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_test_calibrate_{}", ::getpid());
+  fs::create_directories(dir);
+  const fs::path config = dir / "lipdrive.toml";
+  std::ofstream(config) << fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n[performer]\nprofiles_dir = \"{}\"\n",
+                                       kModel.string(), kTake.string(), dir.string());
+
+  // The first 15 tracked frames are the opening silence: the neutral pose.
+  const std::string command = fmt::format("{} calibrate --config {} --performer grid --input {} --neutral-frames 15 2>&1",
+                                          LIPDRIVE_BINARY, config.string(), kTake.string());
+  std::FILE* pipe = ::popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  for (char buffer[256]; std::fgets(buffer, sizeof buffer, pipe);) output += buffer;
+  ASSERT_EQ(::pclose(pipe), 0) << output;
+  EXPECT_NE(output.find("performer grid"), std::string::npos) << output;
+  const PerformerProfile profile = load_profile(dir / "grid.toml");
+  EXPECT_TRUE(profile.calibrated);
+  EXPECT_GT(profile.open.max, profile.open.min + 0.1) << output;
+
+  // No ease or hold, so the channel shows the calibrated signal itself.
+  PipelineSettings settings;
+  settings.channels = {ChannelSpec{.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1, .neutral = 0}};
+  settings.safety = {.hold_ns = 0, .ease_ns = 0};
+  SimulatedCameraOptions take;
+  take.input = kTake;
+  take.real_time = true;  // no frame is dropped at 25 fps
+  static const MorphableModel model = load_model_file(kModel);
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(take),
+                    std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor()),
+                    settings);
+  pipeline.set_profile(profile);
+  OpenChannelByFrame open;
+  pipeline.add_output(open);
+  pipeline.start();
+  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  while (!pipeline.finished() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  pipeline.stop();
+
+  const std::map<std::uint64_t, double> values = open.values();
+  ASSERT_GE(values.size(), 70u) << "frames tracked and driven";
+  double lowest = 1, highest = 0, silence_sum = 0, silence_max = 0;
+  int silence_frames = 0;
+  for (const auto& [frame, value] : values) {
+    lowest = std::min(lowest, value);
+    highest = std::max(highest, value);
+    if (frame >= kFinalSilenceFrom) {
+      silence_sum += value;
+      silence_max = std::max(silence_max, value);
+      ++silence_frames;
+    }
+  }
+  RecordProperty("open_span", fmt::format("{:.3f}", highest - lowest));
+  RecordProperty("final_silence_mean", fmt::format("{:.3f}", silence_sum / silence_frames));
+  RecordProperty("final_silence_max", fmt::format("{:.3f}", silence_max));
+  EXPECT_GE(highest - lowest, 0.8);
+  ASSERT_GT(silence_frames, 15);
+  EXPECT_LE(silence_max, 0.1) << "mean " << silence_sum / silence_frames;
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace lipdrive

@@ -1,0 +1,220 @@
+// The safety layer of the drive (DESIGN.md 5): mapping, clamp, slew limit, fail-safe ease.
+#include "allocation_counter.hpp"
+#include "core/calibration.hpp"
+#include "core/drive_channels.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+constexpr std::int64_t kFrameNs = 16'666'667;  // 60 fps
+constexpr std::int64_t kMs = 1'000'000;
+
+ChannelSpec open_channel() {
+  return {.name = "jaw", .signal = Signal::kOpen, .out_min = 1000, .out_max = 2000, .neutral = 1200};
+}
+
+DriveSignals open_at(float value) {
+  DriveSignals s;
+  s[Signal::kOpen] = value;
+  return s;
+}
+
+TEST(DriveSignals, NamesRoundTripAndFollowTheVisemes) {
+  for (int s = 0; s < kNumSignals; ++s) EXPECT_EQ(parse_signal(signal_name(static_cast<Signal>(s))), static_cast<Signal>(s));
+  for (int v = 0; v < kNumVisemes; ++v)
+    EXPECT_EQ(signal_name(viseme_signal(v)), "viseme_" + std::string(kVisemeNames[static_cast<std::size_t>(v)]));
+  EXPECT_FALSE(parse_signal("mouth"));
+}
+
+TEST(ChannelMapping, MapsClampsAndInverts) {
+  ChannelSpec spec = open_channel();
+  spec.in_min = 0.2;
+  spec.in_max = 0.6;
+  EXPECT_DOUBLE_EQ(map_to_output(spec, 0.4), 1500);
+  EXPECT_DOUBLE_EQ(map_to_output(spec, -5), 1000);
+  EXPECT_DOUBLE_EQ(map_to_output(spec, 5), 2000);
+  spec.invert = true;
+  EXPECT_DOUBLE_EQ(map_to_output(spec, 0.2), 2000);
+}
+
+TEST(ChannelBank, RejectsImpossibleChannels) {
+  ChannelSpec spec = open_channel();
+  spec.neutral = 5000;
+  EXPECT_THROW(ChannelBank({&spec, 1}, {}), std::invalid_argument);
+  spec = open_channel();
+  spec.in_max = spec.in_min;
+  EXPECT_THROW(ChannelBank({&spec, 1}, {}), std::invalid_argument);
+  std::vector<ChannelSpec> too_many(kMaxChannels + 1, open_channel());
+  EXPECT_THROW(ChannelBank(too_many, {}), std::invalid_argument);
+}
+
+TEST(ChannelBank, StartsNeutralAndEasesInWithoutAJump) {
+  const ChannelSpec spec = open_channel();
+  ChannelBank bank({&spec, 1}, {.hold_ns = 200 * kMs, .ease_ns = 300 * kMs});
+  EXPECT_EQ(bank.values()[0], 1200);
+  double previous = 1200;
+  std::int64_t now = 0;
+  for (int frame = 0; frame < 30; ++frame, now += kFrameNs) {
+    const double value = bank.step(open_at(1), {.tracked = true, .now_ns = now})[0];
+    // The ease covers 800 units in 300 ms: at most 45 units per 60 fps frame.
+    EXPECT_LE(value - previous, 800.0 * kFrameNs / (300 * kMs) + 1e-9) << frame;
+    previous = value;
+  }
+  EXPECT_DOUBLE_EQ(previous, 2000);
+  EXPECT_FALSE(bank.fail_safe_active());
+}
+
+/// Tracks for a second, then loses the face; returns the frame time at which neutral is reached.
+std::int64_t time_to_neutral(ChannelBank& bank, std::int64_t& now) {
+  for (; now < 1000 * kMs; now += kFrameNs) bank.step(open_at(0.9f), {.tracked = true, .now_ns = now});
+  const std::int64_t lost_at = now;
+  for (; now < lost_at + 5000 * kMs; now += kFrameNs) {
+    if (bank.step(open_at(0.9f), {.tracked = false, .now_ns = now})[0] == 1200) return now - lost_at;
+  }
+  return -1;
+}
+
+TEST(ChannelBank, LossHoldsThenReachesNeutralWithinHoldPlusEase) {
+  const ChannelSpec spec = open_channel();
+  const SafetySettings safety{.hold_ns = 250 * kMs, .ease_ns = 500 * kMs};
+  ChannelBank bank({&spec, 1}, safety);
+  std::int64_t now = 0;
+  for (; now < 1000 * kMs; now += kFrameNs) bank.step(open_at(0.9f), {.tracked = true, .now_ns = now});
+  const double tracked_value = bank.values()[0];
+  const std::int64_t lost_at = now - kFrameNs;  // the last tracked frame
+  // Holding: the last tracked value, whatever the (untracked) signals say.
+  for (; now <= lost_at + safety.hold_ns; now += kFrameNs) {
+    EXPECT_EQ(bank.step(open_at(0), {.tracked = false, .now_ns = now})[0], tracked_value);
+    EXPECT_FALSE(bank.fail_safe_active());
+  }
+  std::int64_t neutral_at = -1;
+  for (; now < lost_at + 5000 * kMs && neutral_at < 0; now += kFrameNs) {
+    if (bank.step(open_at(0), {.tracked = false, .now_ns = now})[0] == 1200) neutral_at = now - lost_at;
+    EXPECT_TRUE(bank.fail_safe_active());
+  }
+  ASSERT_GE(neutral_at, 0);
+  EXPECT_NEAR(static_cast<double>(neutral_at), static_cast<double>(safety.hold_ns + safety.ease_ns), kFrameNs);
+}
+
+TEST(ChannelBank, SlewLimitHoldsFrameToFrameThroughLossAndReturn) {
+  ChannelSpec spec = open_channel();
+  spec.max_slew_per_s = 1500;  // units per second
+  ChannelBank bank({&spec, 1}, {.hold_ns = 100 * kMs, .ease_ns = 50 * kMs});
+  // A jumpy signal with tracking dropping in and out and a variable frame interval.
+  std::int64_t now = 0;
+  double previous = bank.values()[0];
+  std::int64_t previous_ns = 0;
+  for (int frame = 0; frame < 2000; ++frame) {
+    now += kFrameNs / 2 + (frame * 7919 % 5) * kFrameNs / 4;
+    const bool tracked = (frame / 40) % 3 != 2;
+    const double value = bank.step(open_at(frame % 2 ? 1.0f : 0.0f), {.tracked = tracked, .now_ns = now})[0];
+    EXPECT_LE(std::abs(value - previous), 1500.0 * static_cast<double>(now - previous_ns) * 1e-9 + 1e-9) << frame;
+    EXPECT_GE(value, 1000);
+    EXPECT_LE(value, 2000);
+    previous = value;
+    previous_ns = now;
+  }
+}
+
+TEST(ChannelBank, TrackingReturnEasesBackWithoutAJump) {
+  const ChannelSpec spec = open_channel();
+  ChannelBank bank({&spec, 1}, {.hold_ns = 100 * kMs, .ease_ns = 400 * kMs});
+  std::int64_t now = 0;
+  ASSERT_GT(time_to_neutral(bank, now), 0);
+  double previous = bank.values()[0];
+  for (int frame = 0; frame < 40; ++frame, now += kFrameNs) {
+    const double value = bank.step(open_at(1), {.tracked = true, .now_ns = now})[0];
+    EXPECT_LE(value - previous, 800.0 * kFrameNs / (400 * kMs) + 1e-9) << frame;
+    previous = value;
+  }
+  EXPECT_DOUBLE_EQ(previous, 2000);
+}
+
+TEST(ChannelBank, DisabledOutputsEaseToNeutralAndOverridesWin) {
+  std::vector<ChannelSpec> specs{open_channel(), open_channel()};
+  ChannelBank bank(specs, {.hold_ns = 100 * kMs, .ease_ns = 100 * kMs});
+  std::int64_t now = 0;
+  for (; now < 500 * kMs; now += kFrameNs) bank.step(open_at(1), {.tracked = true, .now_ns = now});
+  bank.set_override(1, 1900);
+  bank.set_override(0, 99999);  // clamped to the output range
+  bank.step(open_at(1), {.tracked = true, .now_ns = now});
+  EXPECT_EQ(bank.values()[0], 2000);
+  EXPECT_EQ(bank.values()[1], 1900);
+  bank.set_override(0, ChannelBank::kNoOverride);
+  bank.set_override(1, ChannelBank::kNoOverride);
+  // Disabled: no hold, straight into the ease.
+  const std::int64_t disabled_at = now;
+  for (; now < disabled_at + 100 * kMs + kFrameNs; now += kFrameNs)
+    bank.step(open_at(1), {.tracked = true, .enabled = false, .now_ns = now});
+  EXPECT_EQ(bank.values()[0], 1200);
+  EXPECT_TRUE(bank.fail_safe_active());
+}
+
+TEST(ChannelBank, TrackingChannelReportsTheStateUneased) {
+  const ChannelSpec spec{.name = "led", .signal = Signal::kTracking, .out_min = 0, .out_max = 1, .neutral = 0};
+  ChannelBank bank({&spec, 1}, {});
+  EXPECT_EQ(bank.step({}, {.tracked = true, .now_ns = 0})[0], 1);
+  EXPECT_EQ(bank.step({}, {.tracked = false, .now_ns = kFrameNs})[0], 0);
+}
+
+TEST(ChannelBank, SmoothedChannelsFilterOnFrameTimesOnly) {
+  std::vector<ChannelSpec> specs{open_channel(), open_channel()};
+  specs[1].smoothed = true;
+  specs[1].smoothing = {.min_cutoff_hz = 1.0, .beta = 0.0};
+  ChannelBank bank(specs, {.hold_ns = 100 * kMs, .ease_ns = 0});
+  // A still mouth with tracking jitter: the smoothed channel moves far less frame to frame.
+  double raw_jitter = 0, smooth_jitter = 0;
+  std::array<double, 2> previous{};
+  std::int64_t now = 0;
+  for (int frame = 0; frame < 300; ++frame, now += kFrameNs) {
+    const auto values = bank.step(open_at(frame % 2 ? 0.52f : 0.48f), {.tracked = true, .now_ns = now, .frame_time_ns = now});
+    if (frame > 100) {
+      raw_jitter += std::abs(values[0] - previous[0]);
+      smooth_jitter += std::abs(values[1] - previous[1]);
+    }
+    previous = {values[0], values[1]};
+  }
+  EXPECT_LT(smooth_jitter, raw_jitter / 5);
+  EXPECT_NEAR(previous[1], 1500, 10);
+  // An idle tick repeats the last frame: nothing to filter, nothing changes.
+  const double before = bank.values()[1];
+  bank.step(open_at(1), {.tracked = true, .now_ns = now + kMs, .frame_time_ns = now - kFrameNs});
+  EXPECT_EQ(bank.values()[1], before);
+}
+
+TEST(ChannelBank, StepAllocatesNothing) {
+  std::vector<ChannelSpec> specs(kMaxChannels, open_channel());
+  ChannelBank bank(specs, {});
+  test::count_allocations_on_this_thread(true);
+  const long before = test::allocation_count();
+  for (int frame = 0; frame < 1000; ++frame)
+    bank.step(open_at(static_cast<float>(frame % 10) / 10), {.tracked = frame % 100 < 70, .now_ns = frame * kFrameNs});
+  const long allocations = test::allocation_count() - before;
+  test::count_allocations_on_this_thread(false);
+  EXPECT_EQ(allocations, 0);
+}
+
+TEST(Calibration, ScalesEachMeasureIntoItsRange) {
+  PerformerProfile profile;
+  profile.open = {0.1, 0.5};
+  profile.width = {1.0, 0.8};  // inverted ranges are allowed
+  MouthMeasures m;
+  m.height_fit = 0.3;
+  m.width_fit = 0.85;
+  m.protrusion_3d = -1;
+  const std::array<float, 2> visemes{0.25f, 0.5f};
+  const DriveSignals s = drive_signals(m, visemes, profile);
+  EXPECT_FLOAT_EQ(s[Signal::kOpen], 0.5f);
+  EXPECT_FLOAT_EQ(s[Signal::kWidth], 0.75f);
+  EXPECT_FLOAT_EQ(s[Signal::kProtrusion], 0.0f);
+  EXPECT_FLOAT_EQ(s[Signal::kTracking], 1.0f);
+  EXPECT_FLOAT_EQ(s[viseme_signal(1)], 0.5f);
+}
+
+}  // namespace
+}  // namespace lipdrive

@@ -1,0 +1,568 @@
+// The Modbus outputs against real peers: libmodbus masters reading and writing the register
+// map over loopback TCP and over an RTU pty pair (socat), the client output writing to a
+// libmodbus slave that goes away and comes back, and the server under garbage and load.
+#include "firmware_app/model_files.hpp"
+#include "firmware_app/modbus_output.hpp"
+#include "firmware_app/pipeline.hpp"
+#include "serial_peers.hpp"
+#include "shared_predictor.hpp"
+#include "sim/simulated_camera.hpp"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <modbus/modbus-rtu.h>
+#include <modbus/modbus-tcp.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using ::testing::HasSubstr;
+namespace map = modbus_map;
+
+const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+
+const std::vector<ChannelSpec> kChannels = {
+    {.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 100},
+    {.name = "width", .signal = Signal::kWidth, .out_min = 1000, .out_max = 2000, .neutral = 1500},
+};
+const int kChannelCount = static_cast<int>(kChannels.size());
+
+bool wait_for(const std::function<bool()>& condition, std::chrono::milliseconds limit = 10s) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(2ms);
+  }
+  return true;
+}
+
+ModbusServerOptions tcp_server_options() {
+  ModbusServerOptions options;
+  options.link.address = "127.0.0.1";
+  options.link.port = 0;  // any free port; the test reads it back
+  return options;
+}
+
+/// A libmodbus master on the loopback port.
+ModbusContext tcp_master(int port) {
+  ModbusContext master(modbus_new_tcp("127.0.0.1", port));
+  EXPECT_EQ(modbus_connect(master.get()), 0) << modbus_strerror(errno);
+  modbus_set_response_timeout(master.get(), 2, 0);
+  return master;
+}
+
+std::vector<std::uint16_t> read_input(modbus_t* master, int address, int count) {
+  std::vector<std::uint16_t> registers(static_cast<std::size_t>(count));
+  EXPECT_EQ(modbus_read_input_registers(master, address, count, registers.data()), count) << modbus_strerror(errno);
+  return registers;
+}
+
+std::uint16_t read_holding(modbus_t* master, int address) {
+  std::uint16_t value = 0;
+  EXPECT_EQ(modbus_read_registers(master, address, 1, &value), 1) << modbus_strerror(errno);
+  return value;
+}
+
+void write_holding(modbus_t* master, int address, std::uint16_t value) {
+  EXPECT_EQ(modbus_write_register(master, address, value), 1) << modbus_strerror(errno);
+}
+
+/// errno of a request that must fail with a Modbus exception.
+int exception_of(int result) { return result == -1 ? errno : 0; }
+
+DriveFrame frame_with(std::uint32_t counter, double open, double width) {
+  DriveFrame frame;
+  frame.counter = counter;
+  frame.sequence = 0x1'0002'0003;  // low 32 bits: 0x0002'0003
+  frame.capture_time_ns = monotonic_ns();
+  frame.new_result = true;
+  frame.status = kStatusTracking | kStatusOutputsEnabled;
+  frame.fps = 29.97f;
+  frame.latency_ms = 70.123f;  // 70123 µs: more than 16 bits
+  frame.channel_count = kChannelCount;
+  frame.values[0] = open;
+  frame.values[1] = width;
+  return frame;
+}
+
+/// The register map without a pipeline: everything the server shows for one known frame,
+/// and every control register, over one master.
+void check_register_map(modbus_t* master, ModbusServerOutput& output, DriveControl& control) {
+  // Before the first frame: the neutral pose.
+  auto input = read_input(master, 0, map::kFirstChannel + kChannelCount);
+  EXPECT_EQ(input[map::kChannelCount], kChannelCount);
+  EXPECT_EQ(input[map::kFirstChannel], 100);
+  EXPECT_EQ(input[map::kFirstChannel + 1], 1500);
+
+  output.publish(frame_with(0x1'2345, 412.6, 70000));
+  input = read_input(master, 0, map::kFirstChannel + kChannelCount);
+  EXPECT_EQ(input[map::kStatus], kStatusTracking | kStatusOutputsEnabled);
+  EXPECT_EQ(input[map::kHeartbeat], 0x2345);
+  EXPECT_EQ(input[map::kSequenceHigh], 0x0002);
+  EXPECT_EQ(input[map::kSequenceLow], 0x0003);
+  EXPECT_EQ((input[map::kLatencyUsHigh] << 16) | input[map::kLatencyUsLow], 70123);
+  EXPECT_EQ(input[map::kFpsTenths], 300);
+  EXPECT_EQ(input[map::kFirstChannel], 413) << "rounded";
+  EXPECT_EQ(input[map::kFirstChannel + 1], 65535) << "clamped";
+
+  EXPECT_EQ(read_holding(master, map::kOutputEnable), 1);
+  write_holding(master, map::kOutputEnable, 0);
+  EXPECT_FALSE(control.outputs_enabled);
+  EXPECT_EQ(read_holding(master, map::kOutputEnable), 0);
+  write_holding(master, map::kOutputEnable, 1);
+  EXPECT_TRUE(control.outputs_enabled);
+
+  const std::uint32_t calibrations = control.calibrate_requests;
+  write_holding(master, map::kCalibrate, 1);
+  write_holding(master, map::kCalibrate, 1);
+  EXPECT_EQ(control.calibrate_requests, calibrations + 2) << "one request per write of 1";
+  EXPECT_EQ(read_holding(master, map::kCalibrate), 0);
+
+  write_holding(master, map::kRecord, 1);
+  EXPECT_EQ(control.recording_request, 1);
+  EXPECT_EQ(read_holding(master, map::kRecord), 0) << "not recording until the daemon says so";
+  control.daemon_status = kStatusRecording;
+  EXPECT_EQ(read_holding(master, map::kRecord), 1);
+  write_holding(master, map::kRecord, 0);
+  EXPECT_EQ(control.recording_request, 0);
+  control.daemon_status = 0;
+
+  EXPECT_EQ(read_holding(master, map::kFirstOverride + 1), map::kNoOverride);
+  const std::uint16_t both[] = {250, 1800};
+  EXPECT_EQ(modbus_write_registers(master, map::kFirstOverride, 2, both), 2);
+  EXPECT_EQ(control.overrides[0], 250);
+  EXPECT_EQ(control.overrides[1], 1800);
+  EXPECT_EQ(read_holding(master, map::kFirstOverride + 1), 1800);
+  write_holding(master, map::kFirstOverride + 1, map::kNoOverride);
+  EXPECT_TRUE(std::isnan(control.overrides[1].load()));
+  control.overrides[0] = ChannelBank::kNoOverride;
+
+  // Beyond the map: exceptions, and nothing is written.
+  std::uint16_t value = 0;
+  EXPECT_EQ(exception_of(modbus_read_input_registers(master, map::kFirstChannel + kChannelCount, 1, &value)),
+            EMBXILADD);
+  EXPECT_EQ(exception_of(modbus_write_registers(master, map::kFirstOverride + 1, 2, both)), EMBXILADD);
+  EXPECT_TRUE(std::isnan(control.overrides[1].load())) << "a rejected write changes nothing";
+  std::uint8_t bits[1];
+  EXPECT_EQ(exception_of(modbus_read_bits(master, 0, 1, bits)), EMBXILADD) << "the map has no coils";
+}
+
+// ---------------------------------------------------------------- register map, no pipeline
+
+TEST(ModbusServer, TcpRegisterMapAndControlRegisters) {
+  DriveControl control;
+  ModbusServerOutput output(tcp_server_options(), kChannels, control);
+  ASSERT_GT(output.port(), 0);
+  EXPECT_THAT(output.describe(), HasSubstr(fmt::format("tcp 127.0.0.1:{}", output.port())));
+  const ModbusContext master = tcp_master(output.port());
+  check_register_map(master.get(), output, control);
+}
+
+TEST(ModbusServer, RtuServesTheSameMapOverASerialLine) {
+  const test::TempDir dir;
+  auto pty = std::make_unique<test::PtyPair>(dir.path());
+  const test::PtyPair& line = *pty;
+  ModbusServerOptions options;
+  options.link.transport = ModbusLinkOptions::Transport::kRtu;
+  options.link.line.device = line.a;
+  options.link.line.baud = 115200;
+  options.link.line.rs485 = true;  // a pty cannot do RS-485: logged, not fatal
+  options.link.unit_id = 7;
+  DriveControl control;
+  ModbusServerOutput output(options, kChannels, control);
+  EXPECT_THAT(output.describe(), HasSubstr("rtu"));
+
+  const ModbusContext master(modbus_new_rtu(line.b.c_str(), 115200, 'N', 8, 1));
+  ASSERT_EQ(modbus_connect(master.get()), 0) << modbus_strerror(errno);
+  modbus_set_response_timeout(master.get(), 1, 0);
+  modbus_set_slave(master.get(), 7);
+  check_register_map(master.get(), output, control);
+
+  // Another unit's requests are not answered, and that unit's answer (sent here by hand, as
+  // unit 8 would on a shared bus) is not taken for a request.
+  modbus_set_slave(master.get(), 8);
+  modbus_set_response_timeout(master.get(), 0, 200'000);
+  std::uint16_t value = 0;
+  EXPECT_EQ(modbus_read_input_registers(master.get(), 0, 1, &value), -1);
+  EXPECT_EQ(errno, ETIMEDOUT);
+  const std::uint8_t unit8_answer[] = {8, MODBUS_FC_READ_INPUT_REGISTERS, 2, 0x12, 0x34};
+  ASSERT_GT(modbus_send_raw_request(master.get(), unit8_answer, sizeof unit8_answer), 0);
+  modbus_set_slave(master.get(), 7);
+  EXPECT_EQ(read_input(master.get(), map::kChannelCount, 1)[0], kChannelCount) << "unit 7 still answers";
+
+  EXPECT_TRUE(output.healthy());
+  pty.reset();  // the "adapter" is unplugged
+  EXPECT_TRUE(wait_for([&] { return !output.healthy(); }, 2s));
+}
+
+// ---------------------------------------------------------------- robustness
+
+/// A raw TCP connection, for what a libmodbus master would never send.
+class RawConnection {
+ public:
+  explicit RawConnection(int port) : fd_(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<std::uint16_t>(port));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::connect(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+  }
+  ~RawConnection() { ::close(fd_); }
+  void send(const std::vector<std::uint8_t>& bytes) const {
+    EXPECT_EQ(::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL), static_cast<ssize_t>(bytes.size()));
+  }
+  /// What arrives within `limit`; stops at the peer's close.
+  std::vector<std::uint8_t> receive(std::size_t expected, std::chrono::milliseconds limit) const {
+    std::vector<std::uint8_t> bytes;
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (bytes.size() < expected && std::chrono::steady_clock::now() < deadline) {
+      pollfd readable{fd_, POLLIN, 0};
+      if (::poll(&readable, 1, 10) != 1) continue;
+      std::uint8_t chunk[300];
+      const ssize_t size = ::recv(fd_, chunk, sizeof chunk, 0);
+      if (size <= 0) break;
+      bytes.insert(bytes.end(), chunk, chunk + size);
+    }
+    return bytes;
+  }
+
+ private:
+  int fd_;
+};
+
+TEST(ModbusServer, GarbageAndBadRequestsGetExceptionsAndOthersAreStillServed) {
+  DriveControl control;
+  ModbusServerOutput output(tcp_server_options(), kChannels, control);
+  output.publish(frame_with(1, 300, 1200));
+  const ModbusContext bystander = tcp_master(output.port());
+  EXPECT_EQ(read_input(bystander.get(), map::kFirstChannel, 1)[0], 300);
+
+  // Function 0x55 does not exist: exception 1 (illegal function), same transaction id.
+  RawConnection raw(output.port());
+  raw.send({0x12, 0x34, 0x00, 0x00, 0x00, 0x02, 0x01, 0x55});
+  EXPECT_THAT(raw.receive(9, 2s), ::testing::ElementsAre(0x12, 0x34, 0x00, 0x00, 0x00, 0x03, 0x01, 0xD5, 0x01));
+  // Read 0 registers: exception 3 (illegal data value).
+  raw.send({0x00, 0x02, 0x00, 0x00, 0x00, 0x06, 0x01, 0x04, 0x00, 0x00, 0x00, 0x00});
+  EXPECT_THAT(raw.receive(9, 2s), ::testing::ElementsAre(0x00, 0x02, 0x00, 0x00, 0x00, 0x03, 0x01, 0x84, 0x03));
+  // Write beyond the map: exception 2 (illegal data address).
+  raw.send({0x00, 0x03, 0x00, 0x00, 0x00, 0x06, 0x01, 0x06, 0x01, 0x00, 0x00, 0x01});
+  EXPECT_THAT(raw.receive(9, 2s), ::testing::ElementsAre(0x00, 0x03, 0x00, 0x00, 0x00, 0x03, 0x01, 0x86, 0x02));
+
+  // Garbage, and a request cut short that never completes: those connections are dropped
+  // (or answered), the others are served meanwhile.
+  RawConnection garbage(output.port()), stalled(output.port());
+  std::vector<std::uint8_t> noise(200);
+  for (std::size_t i = 0; i < noise.size(); ++i) noise[i] = static_cast<std::uint8_t>(i * 37 + 11);
+  garbage.send(noise);
+  stalled.send({0x00, 0x04, 0x00, 0x00, 0x00, 0x06, 0x01, 0x10, 0x00});
+  garbage.receive(1000, 300ms);
+  for (int i = 0; i < 20; ++i)
+    EXPECT_EQ(read_input(bystander.get(), map::kFirstChannel, 1)[0], 300) << "the bystander is still served";
+  const ModbusContext newcomer = tcp_master(output.port());
+  EXPECT_EQ(read_input(newcomer.get(), map::kChannelCount, 1)[0], kChannelCount);
+  EXPECT_TRUE(stalled.receive(1, 1s).empty()) << "a half request gets no answer";
+}
+
+TEST(ModbusServer, StopsPromptly) {
+  DriveControl control;
+  auto output = std::make_unique<ModbusServerOutput>(tcp_server_options(), kChannels, control);
+  const ModbusContext master = tcp_master(output->port());
+  RawConnection stalled(output->port());
+  stalled.send({0x00, 0x04, 0x00, 0x00, 0x00, 0x06, 0x01, 0x10, 0x00});  // the server sits in its byte timeout
+  std::this_thread::sleep_for(10ms);
+  const auto start = std::chrono::steady_clock::now();
+  output.reset();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 100ms);
+}
+
+// ---------------------------------------------------------------- with the pipeline
+
+std::unique_ptr<FrameProcessor> make_processor() {
+  static const MorphableModel model = load_model_file(kModel);
+  return std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor());
+}
+
+/// The pipeline on the talking-face clip at its recorded frame rate, with the server output.
+class PipelineWithServer {
+ public:
+  PipelineWithServer()
+      : pipeline_(std::make_unique<SimulatedCamera>(SimulatedCameraOptions{.input = kClip, .real_time = true, .loop = true}),
+                  make_processor(), settings()),
+        output_(tcp_server_options(), kChannels, pipeline_.control()) {
+    pipeline_.add_output(output_);
+    pipeline_.start();
+  }
+  // The output reads the pipeline's DriveControl: the pipeline stops first, the output goes
+  // next, the pipeline last.
+  ~PipelineWithServer() { pipeline_.stop(); }
+
+  Pipeline& pipeline() { return pipeline_; }
+  ModbusServerOutput& output() { return output_; }
+
+  /// Processed frames per second over `interval`.
+  double processed_rate(std::chrono::milliseconds interval) {
+    const std::uint64_t before = pipeline_.stats().processed;
+    std::this_thread::sleep_for(interval);
+    return static_cast<double>(pipeline_.stats().processed - before) / std::chrono::duration<double>(interval).count();
+  }
+
+ private:
+  static PipelineSettings settings() {
+    PipelineSettings settings;
+    settings.channels = kChannels;
+    settings.safety.ease_ns = 100'000'000;
+    return settings;
+  }
+
+  Pipeline pipeline_;
+  ModbusServerOutput output_;
+};
+
+class ModbusPipelineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
+  }
+};
+
+TEST_F(ModbusPipelineTest, RegistersFollowTheMouthAndControlTheDrive) {
+  PipelineWithServer running;
+  const ModbusContext master = tcp_master(running.output().port());
+  const auto status = [&] { return read_input(master.get(), map::kStatus, 1)[0]; };
+  ASSERT_TRUE(wait_for([&] { return (status() & kStatusTracking) != 0; }, 30s)) << "tracking within 30 s";
+
+  std::uint16_t lowest = 65535, highest = 0, first_heartbeat = read_input(master.get(), map::kHeartbeat, 1)[0];
+  const auto moves = [&] {
+    const std::uint16_t open = read_input(master.get(), map::kFirstChannel, 1)[0];
+    lowest = std::min(lowest, open);
+    highest = std::max(highest, open);
+    return highest - lowest > 100;
+  };
+  EXPECT_TRUE(wait_for(moves, 10s)) << "the open channel follows the talking mouth: " << lowest << ".." << highest;
+  EXPECT_NE(read_input(master.get(), map::kHeartbeat, 1)[0], first_heartbeat) << "the heartbeat ticks";
+  ASSERT_TRUE(wait_for([&] { return read_input(master.get(), map::kFpsTenths, 1)[0] > 0; }, 3s));
+  const auto registers = read_input(master.get(), 0, map::kFirstChannel);
+  EXPECT_GT((registers[map::kLatencyUsHigh] << 16) | registers[map::kLatencyUsLow], 0);
+  EXPECT_GT((registers[map::kSequenceHigh] << 16) | registers[map::kSequenceLow], 0);
+  EXPECT_EQ(registers[map::kChannelCount], kChannelCount);
+  EXPECT_TRUE(registers[map::kStatus] & kStatusOutputsEnabled);
+
+  // An override shows in the pipeline's next drive frames and in the channel register.
+  write_holding(master.get(), map::kFirstOverride, 777);
+  DriveFrame drive;
+  EXPECT_TRUE(wait_for([&] {
+    running.pipeline().latest_drive(drive);
+    return drive.values[0] == 777;
+  }));
+  EXPECT_TRUE(wait_for([&] { return read_input(master.get(), map::kFirstChannel, 1)[0] == 777; }));
+  write_holding(master.get(), map::kFirstOverride, map::kNoOverride);
+
+  // Output enable off: the drive reports it and goes to the fail-safe.
+  write_holding(master.get(), map::kOutputEnable, 0);
+  EXPECT_TRUE(wait_for([&] { return (status() & (kStatusOutputsEnabled | kStatusFailSafe)) == kStatusFailSafe; }));
+  write_holding(master.get(), map::kOutputEnable, 1);
+  EXPECT_TRUE(wait_for([&] { return (status() & kStatusOutputsEnabled) != 0; }));
+
+  const std::uint32_t calibrations = running.pipeline().control().calibrate_requests;
+  write_holding(master.get(), map::kCalibrate, 1);
+  EXPECT_EQ(running.pipeline().control().calibrate_requests, calibrations + 1);
+  write_holding(master.get(), map::kRecord, 1);
+  EXPECT_EQ(running.pipeline().control().recording_request, 1);
+}
+
+TEST_F(ModbusPipelineTest, EightPollingClientsDoNotSlowThePipeline) {
+  PipelineWithServer running;
+  ASSERT_TRUE(wait_for([&] { return running.pipeline().stats().tracked > 10; }, 30s));
+  const double quiet = running.processed_rate(3s);
+
+  constexpr int kClients = 8;
+  std::atomic<bool> stop{false};
+  std::atomic<std::uint64_t> reads{0}, failures{0};
+  std::vector<std::thread> clients;
+  for (int i = 0; i < kClients; ++i)
+    clients.emplace_back([&] {
+      const ModbusContext master = tcp_master(running.output().port());
+      std::uint16_t registers[map::kFirstChannel + 2];
+      while (!stop) {
+        if (modbus_read_input_registers(master.get(), 0, map::kFirstChannel + kChannelCount, registers) ==
+            map::kFirstChannel + kChannelCount)
+          ++reads;
+        else
+          ++failures;
+      }
+    });
+  const double loaded = running.processed_rate(10s);
+  stop = true;
+  for (auto& client : clients) client.join();
+
+  const double requests_per_s = static_cast<double>(reads) / 10;
+  std::printf("processed %.1f frames/s quiet, %.1f frames/s under %d clients polling %.0f requests/s\n", quiet,
+              loaded, kClients, requests_per_s);
+  EXPECT_EQ(failures, 0u);
+  EXPECT_GT(requests_per_s, 500) << "the clients really were polling";
+  EXPECT_GE(loaded, 0.8 * quiet);
+}
+
+// ---------------------------------------------------------------- client mode
+
+/// A libmodbus TCP slave on a thread: 64 holding registers, one connection at a time; it can
+/// stop answering (connections stay open, requests go unread) and start again.
+class TestSlave {
+ public:
+  TestSlave() : context_(modbus_new_tcp("127.0.0.1", 0)), mapping_(modbus_mapping_new(0, 0, 64, 0)) {
+    listen_fd_ = modbus_tcp_listen(context_.get(), 16);
+    sockaddr_in bound{};
+    socklen_t size = sizeof bound;
+    EXPECT_EQ(::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&bound), &size), 0);
+    port_ = ntohs(bound.sin_port);
+    thread_ = std::thread([this] { serve(); });
+  }
+  ~TestSlave() {
+    stop_ = true;
+    thread_.join();
+    modbus_set_socket(context_.get(), -1);
+    ::close(listen_fd_);
+    modbus_mapping_free(mapping_);
+  }
+  int port() const { return port_; }
+  void set_answering(bool answering) { answering_ = answering; }
+  std::uint16_t holding(int address) {
+    std::lock_guard lock(mutex_);
+    return mapping_->tab_registers[address];
+  }
+
+ private:
+  void serve() {
+    int client = -1;
+    std::uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
+    while (!stop_) {
+      if (!answering_) {
+        std::this_thread::sleep_for(5ms);
+        continue;
+      }
+      pollfd readable{client == -1 ? listen_fd_ : client, POLLIN, 0};
+      if (::poll(&readable, 1, 20) != 1) continue;
+      if (client == -1) {
+        client = ::accept(listen_fd_, nullptr, nullptr);
+        continue;
+      }
+      modbus_set_socket(context_.get(), client);
+      const int length = modbus_receive(context_.get(), query);
+      if (length > 0) {
+        std::lock_guard lock(mutex_);
+        modbus_reply(context_.get(), query, length, mapping_);
+      } else if (length == -1) {
+        ::close(client);
+        client = -1;
+      }
+    }
+    if (client != -1) ::close(client);
+  }
+
+  ModbusContext context_;
+  modbus_mapping_t* mapping_;
+  std::mutex mutex_;
+  int listen_fd_ = -1, port_ = 0;
+  std::atomic<bool> stop_{false}, answering_{true};
+  std::thread thread_;
+};
+
+/// Publishes a frame every 5 ms, the first channel counting up, and times every publish().
+class Feeder {
+ public:
+  explicit Feeder(Output& output)
+      : thread_([this, &output] {
+          for (std::uint32_t counter = 1; !stop_; ++counter) {
+            DriveFrame frame = frame_with(counter, counter % 1000, 1234);
+            frame.sequence = counter;
+            const std::int64_t start = monotonic_ns();
+            output.publish(frame);
+            slowest_ns_ = std::max<std::int64_t>(slowest_ns_, monotonic_ns() - start);
+            std::this_thread::sleep_for(5ms);
+          }
+        }) {}
+  ~Feeder() {
+    stop_ = true;
+    thread_.join();
+  }
+  std::int64_t slowest_publish_ns() const { return slowest_ns_; }
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::atomic<std::int64_t> slowest_ns_{0};
+  std::thread thread_;
+};
+
+TEST(ModbusClient, WritesChannelsAndRidesOutADeadSlave) {
+  TestSlave slave;
+  ModbusClientOptions options;
+  options.link.port = slave.port();
+  options.channels = {"width", "open"};
+  options.first_register = 10;
+  options.rate_hz = 50;
+  options.timeout_ms = 100;
+  options.max_backoff_ms = 400;
+  ModbusClientOutput output(options, kChannels);
+  EXPECT_THAT(output.describe(), HasSubstr("registers 10..11"));
+  Feeder feeder(output);
+
+  ASSERT_TRUE(wait_for([&] { return slave.holding(10) == 1234 && slave.holding(11) > 0 && output.writes_ok() > 10; }))
+      << "the channels arrive in the configured order";
+  EXPECT_TRUE(output.healthy());
+  EXPECT_EQ(output.writes_failed(), 0u);
+  // At most rate_hz: 0.5 s of feeding at 200 frames/s gives about 25 writes.
+  const std::uint64_t ok_before = output.writes_ok();
+  std::this_thread::sleep_for(500ms);
+  EXPECT_LE(output.writes_ok() - ok_before, 30u);
+  EXPECT_GT(output.wire_latency()->count(), 0u);
+
+  slave.set_answering(false);
+  EXPECT_TRUE(wait_for([&] { return output.writes_failed() >= 3 && !output.healthy(); }))
+      << "failed " << output.writes_failed();
+  const std::uint16_t stale = slave.holding(11);
+
+  slave.set_answering(true);
+  const std::uint64_t ok_after_outage = output.writes_ok();
+  EXPECT_TRUE(wait_for([&] { return output.writes_ok() > ok_after_outage + 5 && output.healthy(); }));
+  EXPECT_TRUE(wait_for([&] { return slave.holding(11) != stale; })) << "new values arrive again";
+  EXPECT_LT(feeder.slowest_publish_ns(), 5'000'000) << "publish() never waits for the slave";
+  std::printf("capture->wire latency median %.2f ms, p99 %.2f ms over %llu frames\n",
+              output.wire_latency()->quantile_ms(0.5), output.wire_latency()->quantile_ms(0.99),
+              static_cast<unsigned long long>(output.wire_latency()->count()));
+}
+
+TEST(ModbusClient, UnknownChannelIsNamed) {
+  ModbusClientOptions options;
+  options.channels = {"open", "jaw"};
+  try {
+    ModbusClientOutput output(options, kChannels);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_THAT(error.what(), HasSubstr("'jaw'"));
+  }
+}
+
+}  // namespace
+}  // namespace lipdrive
