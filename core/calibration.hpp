@@ -3,9 +3,11 @@
 #pragma once
 
 #include "core/drive_signals.hpp"
+#include "core/facial_indices.hpp"
 #include "core/mouth_measures.hpp"
 
 #include <array>
+#include <optional>
 #include <span>
 #include <stdexcept>
 
@@ -32,8 +34,11 @@ struct PerformerProfile {
   MeasureRange open{0.03, 0.35};        // MouthMeasures::height_fit
   MeasureRange width{1.0, 1.5};         // MouthMeasures::width_fit
   MeasureRange protrusion{-0.02, 0.06}; // MouthMeasures::protrusion_3d
+  MeasureRange protrusion_side{0.0, 0.12};  // the side camera's, over the nose length (rest = 0)
   CalibrationSample rest{0.03, 1.2, 0.0};  // the neutral capture's median
   bool calibrated = false;              // measured on this performer (else the defaults)
+  /// DESIGN.md 4.6 indices of the performer's neutral face, when the calibration saw one.
+  std::optional<std::array<double, kNumFacialIndices>> face_indices;
 };
 
 /// A capture that cannot calibrate: too few frames, or a range of motion without motion.

@@ -4,6 +4,9 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <charconv>
+#include <limits>
+#include <utility>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -48,6 +51,23 @@ Vector solve_passive(const Gram& gram, const Vector& h, const Passive& passive) 
     rhs(j) = 0;
   }
   return Eigen::LDLT<Gram>(g).solve(rhs);
+}
+
+/// "neutral" -> (-1, 0); "<viseme>_<percent>" -> (viseme, percent / 100); "<viseme>" -> (viseme, 1).
+std::optional<std::pair<int, double>> parse_pose_name(const std::string& name) {
+  if (name == "neutral") return std::pair{-1, 0.0};
+  for (int v = 0; v < kNumVisemes; ++v) {
+    const std::string viseme(kVisemeNames[v]);
+    if (name == viseme) return std::pair{v, 1.0};
+    if (name.size() == viseme.size() + 4 && name.compare(0, viseme.size() + 1, viseme + "_") == 0) {
+      int percent = 0;
+      const char* digits = name.data() + viseme.size() + 1;
+      const auto [end, error] = std::from_chars(digits, name.data() + name.size(), percent);
+      if (error == std::errc() && end == name.data() + name.size() && percent >= 0 && percent <= 100)
+        return std::pair{v, percent / 100.0};
+    }
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -102,6 +122,77 @@ VisemeSolver::VisemeSolver(const MorphableModel& model)
     directions_.col(v) = stddev_.cwiseProduct(full - neutral_);
   }
   gram_ = directions_.transpose() * directions_;
+  for (int pose = 0; pose < model.num_poses(); ++pose) {
+    const auto parsed = parse_pose_name(model.pose_names[static_cast<std::size_t>(pose)]);
+    if (!parsed) continue;
+    ExamplePose example{parsed->first, parsed->second,
+                        padded(model.pose_coefficients.col(pose), num_components_), {}};
+    const Eigen::VectorXd shape = stddev_.head(num_components_).cwiseProduct(example.alpha.head(num_components_));
+    for (int i = 0; i < kNumLandmarks; ++i) {
+      const int v = model.landmark_vertex[static_cast<std::size_t>(i)];
+      example.landmarks.col(i) = v < 0 ? Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())
+                                       : Eigen::Vector3d(model.mean.segment<3>(3 * v).cast<double>() +
+                                                         model.basis.block(3 * v, 0, 3, num_components_).cast<double>() * shape);
+    }
+    poses_.push_back(example);
+  }
+}
+
+VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& observed, std::span<const int> landmarks) const {
+  // Squared image distance of every example pose; the nearest is the ML pose.
+  std::array<double, 512> distance_storage{};
+  const std::size_t count = std::min(poses_.size(), distance_storage.size());
+  std::size_t best = 0;
+  for (std::size_t p = 0; p < count; ++p) {
+    // The affine camera that best maps this pose's landmarks onto the observed ones (linear
+    // least squares, as in the fit's step 1), then the residual: ML over pose and camera.
+    Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
+    Eigen::Matrix<double, 4, 2> rhs = Eigen::Matrix<double, 4, 2>::Zero();
+    for (const int i : landmarks) {
+      if (!observed.col(i).allFinite() || !poses_[p].landmarks.col(i).allFinite()) continue;
+      const Eigen::Vector4d x = poses_[p].landmarks.col(i).homogeneous();
+      normal.noalias() += x * x.transpose();
+      rhs.noalias() += x * observed.col(i).transpose();
+    }
+    const Eigen::Matrix<double, 4, 2> camera = Eigen::LDLT<Eigen::Matrix4d>(normal).solve(rhs);
+    double d = 0;
+    for (const int i : landmarks) {
+      if (!observed.col(i).allFinite() || !poses_[p].landmarks.col(i).allFinite()) continue;
+      d += (camera.transpose() * poses_[p].landmarks.col(i).homogeneous() - observed.col(i)).squaredNorm();
+    }
+    distance_storage[p] = d;
+    if (d < distance_storage[best]) best = p;
+  }
+  VisemeWeights out = solve(fit.coefficients);
+  if (count == 0 || poses_[best].viseme < 0) return out;  // nearest to neutral: the NNLS mix
+  const int viseme = poses_[best].viseme;
+  // Refine the intensity: the neighbouring intensities of the same viseme (neutral = 0 %).
+  double below_i = -1, below_d = 0, above_i = 2, above_d = 0;
+  const double at_i = poses_[best].intensity, at_d = distance_storage[best];
+  for (std::size_t p = 0; p < count; ++p) {
+    const bool same = poses_[p].viseme == viseme || poses_[p].viseme < 0;
+    if (!same) continue;
+    const double i = poses_[p].viseme < 0 ? 0.0 : poses_[p].intensity;
+    if (i < at_i && i > below_i) below_i = i, below_d = distance_storage[p];
+    if (i > at_i && i < above_i) above_i = i, above_d = distance_storage[p];
+  }
+  double intensity = at_i;
+  if (below_i >= 0 && above_i <= 1) {
+    // Vertex of the parabola through the three (intensity, distance) points.
+    const double a = below_i - at_i, b = above_i - at_i;
+    const double da = below_d - at_d, db = above_d - at_d;
+    const double denominator = a * db - b * da;
+    if (denominator != 0) intensity = at_i + 0.5 * (a * a * db - b * b * da) / denominator;
+    intensity = std::clamp(intensity, below_i, above_i);
+  }
+  // The rest of the fitted shape beyond the matched pose, as non-negative viseme weights.
+  const Coefficients pose_alpha = poses_[best].alpha;
+  const Coefficients target = stddev_.cwiseProduct(fit.coefficients - pose_alpha);
+  const Vector rest = nnls_normal_equations(gram_, directions_.transpose() * target);
+  const auto dominant = static_cast<float>(std::clamp(intensity, 0.0, 1.0));
+  for (int v = 0; v < kNumVisemes; ++v)
+    out[v] = v == viseme ? dominant : std::min(static_cast<float>(std::min(rest(v), 1.0)), std::nextafter(dominant, 0.0f));
+  return out;
 }
 
 VisemeWeights VisemeSolver::solve(const Coefficients& alpha) const {

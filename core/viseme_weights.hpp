@@ -13,6 +13,8 @@
 
 #include <array>
 #include <optional>
+#include <span>
+#include <vector>
 
 namespace lipdrive {
 
@@ -33,6 +35,15 @@ class VisemeSolver {
   /// The weights of fitted coefficients (the first num_components() are read), each in [0, 1].
   VisemeWeights solve(const Coefficients& alpha) const;
 
+  /// The weights of a fitted frame, judged in the image: the example pose (neutral or
+  /// "<viseme>_<percent>") whose landmarks, projected through the fit's camera, lie nearest
+  /// to `observed` over `landmarks` is the maximum-likelihood pose under i.i.d. Gaussian
+  /// landmark noise; its viseme gets the intensity refined between the neighbouring
+  /// intensities (parabola through the three distances), and what the fitted coefficients
+  /// show beyond that pose goes to the NNLS of solve(), never above the dominant weight.
+  /// `observed` is the detected landmarks (unbiased) or fit.projected. Allocates nothing.
+  VisemeWeights solve(const FitOutput& fit, const Landmarks2D& observed, std::span<const int> landmarks) const;
+
   /// 2-norm condition number of the 16 viseme directions: how well the model's components
   /// tell the 16 visemes apart (large = some are nearly linear combinations of others).
   double condition_number() const;
@@ -44,6 +55,15 @@ class VisemeSolver {
   Eigen::Matrix<double, kMaxFitComponents, kNumVisemes> directions_;  // column v = σ ⊙ c_v
   Coefficients stddev_;                                        // σ, zero past num_components_
   Gram gram_;                                                  // directionsᵀ directions
+  // The example poses, for solve(fit, ...): viseme (-1 = neutral), intensity in [0, 1],
+  // coefficients and 3D landmarks (mm, NaN where unmapped).
+  struct ExamplePose {
+    int viseme;
+    double intensity;
+    Coefficients alpha;
+    Eigen::Matrix<double, 3, kNumLandmarks> landmarks;
+  };
+  std::vector<ExamplePose> poses_;
 };
 
 /// The solver of a model that has the poses VisemeSolver needs, else nullopt (a user model

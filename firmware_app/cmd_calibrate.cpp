@@ -6,6 +6,7 @@
 #include "firmware_app/commands.hpp"
 #include "firmware_app/config.hpp"
 #include "firmware_app/from_config.hpp"
+#include "firmware_app/model_files.hpp"
 #include "firmware_app/performer_profile.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -13,7 +14,9 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <memory>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -40,6 +43,18 @@ std::unique_ptr<FrameSource> open_source(const Config& config, const CalibrateOp
   }
 }
 
+/// Per index, the median over the neutral frames: a blink or a mistracked frame moves nothing.
+std::array<double, kNumFacialIndices> median_indices(std::vector<FacialMeasures> faces) {
+  std::array<double, kNumFacialIndices> median{};
+  for (std::size_t i = 0; i < median.size(); ++i) {
+    const auto middle = faces.begin() + static_cast<std::ptrdiff_t>(faces.size() / 2);
+    std::nth_element(faces.begin(), middle, faces.end(),
+                     [i](const FacialMeasures& a, const FacialMeasures& b) { return a.indices[i] < b.indices[i]; });
+    median[i] = middle->indices[i];
+  }
+  return median;
+}
+
 void run_calibrate(const CalibrateOptions& options) {
   const Config config = load_config(options.config);
   const std::filesystem::path out =
@@ -50,6 +65,7 @@ void run_calibrate(const CalibrateOptions& options) {
   auto processor = make_processor(config);
 
   auto neutral = std::make_unique<CalibrationCapture>();
+  std::vector<FacialMeasures> neutral_faces;
   auto motion = std::make_unique<CalibrationCapture>();
   if (!recording) fmt::print(stderr, "Hold a relaxed, neutral face with the lips closed...\n");
   Frame frame;
@@ -62,6 +78,7 @@ void run_calibrate(const CalibrateOptions& options) {
     if (!m.tracked) continue;
     if (neutral->size() < neutral_frames) {
       neutral->add(m.measures);
+      neutral_faces.push_back(facial_measures(m.landmarks));
       if (neutral->size() == neutral_frames && !recording)
         fmt::print(stderr, "Now open wide, smile wide, round the lips (\"oo\"), close; repeat for {:.0f} s...\n",
                    options.motion_seconds);
@@ -77,12 +94,23 @@ void run_calibrate(const CalibrateOptions& options) {
   } catch (const CalibrationError& e) {
     throw CommandError(fmt::format("calibration failed: {}", e.what()), kExitDataError);
   }
+  profile.face_indices = median_indices(neutral_faces);
+  const Compatibility check = model_compatibility(profile, load_model_file(config.model.file));
   save_profile(out, options.performer, profile);
   fmt::print("{}: performer {} ({} neutral frames, {} motion frames)\n", out.string(), options.performer,
              neutral->size(), motion->size());
   fmt::print("  open       {:.3f} .. {:.3f}\n  width      {:.3f} .. {:.3f}\n  protrusion {:.3f} .. {:.3f}\n",
              profile.open.min, profile.open.max, profile.width.min, profile.width.max, profile.protrusion.min,
              profile.protrusion.max);
+  fmt::print("  vertical mouth height {:.2f} ({}; model {}), mouth width {:.2f} ({}; model {})\n",
+             (*profile.face_indices)[kVerticalMouthHeightIndex],
+             index_class_name(check.performer.vertical_mouth_height), index_class_name(check.model.vertical_mouth_height),
+             (*profile.face_indices)[kMouthWidthIndex], index_class_name(check.performer.mouth_width),
+             index_class_name(check.model.mouth_width));
+  if (check.warn)
+    fmt::print("  warning: the performer's vertical mouth height is {} and the model's {}: expect clearly worse lips "
+               "(DESIGN.md 4.6); a model of a closer head drives better\n",
+               index_class_name(check.performer.vertical_mouth_height), index_class_name(check.model.vertical_mouth_height));
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 //
 // A second thread decodes ahead into a small ring of preallocated luma buffers, so decoding
 // overlaps tracking and fitting on a 2-core board; rows still come out in frame order.
+#include "core/side_profile.hpp"
 #include "firmware_app/command_error.hpp"
 #include "firmware_app/commands.hpp"
 #include "firmware_app/frame_processor.hpp"
@@ -39,6 +40,51 @@ struct ProcessOptions {
   std::filesystem::path predictor = kDefaultPredictorPath;
   bool include_landmarks = false;
   bool stats = false;
+  std::filesystem::path side;          // side-camera recording, frame for frame with the input
+  std::string side_facing = "right";   // where the face looks in the side view
+  int side_neutral_frames = 15;        // its first frames: the neutral pose the reference is fixed on
+};
+
+SimulatedCamera open_input(const std::filesystem::path& input);
+
+/// The side-camera recording of a take: protrusion_side for each front frame (DESIGN.md 4.4),
+/// the reference fixed on its first frames, which must show the performer at rest.
+class SideInput {
+ public:
+  explicit SideInput(const ProcessOptions& options)
+      : meter_(SideProfileSettings{.facing = options.side_facing == "left" ? ProfileFacing::kLeft
+                                                                            : ProfileFacing::kRight}),
+        camera_(open_input(options.side)) {
+    std::vector<cv::Mat> neutral;
+    SimulatedCamera first(open_input(options.side));
+    Frame frame;
+    for (GrabStatus status; static_cast<int>(neutral.size()) < options.side_neutral_frames &&
+                            (status = first.grab(frame, std::chrono::milliseconds(0))) != GrabStatus::kEndOfStream;) {
+      if (status == GrabStatus::kFrame) neutral.push_back(frame.gray.clone());
+    }
+    try {
+      reference_ = calibrate_side(meter_, neutral);
+    } catch (const SideCalibrationError& e) {
+      throw CommandError(fmt::format("{}: {}", options.side.string(), e.what()), kExitDataError);
+    }
+  }
+
+  /// The next side frame's protrusion; nullopt when the recording ended or the profile could
+  /// not be measured.
+  std::optional<double> next() {
+    Frame frame;
+    GrabStatus status;
+    while ((status = camera_.grab(frame, std::chrono::milliseconds(0))) == GrabStatus::kTimeout) {
+    }
+    if (status != GrabStatus::kFrame) return std::nullopt;
+    const SideMeasure measure = meter_.measure(frame.gray, reference_);
+    return measure.ok() ? std::optional(measure.protrusion) : std::nullopt;
+  }
+
+ private:
+  SideProfileMeter meter_;
+  SimulatedCamera camera_;
+  SideReference reference_;
 };
 
 using Clock = std::chrono::steady_clock;
@@ -202,7 +248,9 @@ void run_process(const ProcessOptions& options) {
     if (!file) throw CommandError(fmt::format("{}: cannot open for writing", options.out.string()));
   }
   std::ostream& out = options.out.empty() ? std::cout : file;
-  out << measures_csv_header(options.include_landmarks) << '\n';
+  std::optional<SideInput> side;
+  if (!options.side.empty()) side.emplace(options);
+  out << measures_csv_header(options.include_landmarks) << (side ? ",protrusion_side" : "") << '\n';
 
   const bool progress = ::isatty(STDERR_FILENO) == 1;
   StageTimes times;
@@ -238,6 +286,11 @@ void run_process(const ProcessOptions& options) {
     append_measures_csv_row(row, {frame.sequence, frame.media_time_s, frame.source},
                             result.tracked ? &result.measures : nullptr, result.visemes,
                             options.include_landmarks ? &result.landmarks : nullptr);
+    if (side) {
+      const std::optional<double> protrusion = side->next();
+      fmt::format_to(std::back_inserter(row), ",");
+      if (protrusion) fmt::format_to(std::back_inserter(row), "{:.5f}", *protrusion);
+    }
     row.push_back('\n');
     out.write(row.data(), static_cast<std::streamsize>(row.size()));
     ++rows;
@@ -277,6 +330,14 @@ void add_process_command(CLI::App& app) {
   cmd->add_option("--predictor", options->predictor, "dlib 68-point shape predictor (.dat)")->capture_default_str();
   cmd->add_flag("--include-landmarks", options->include_landmarks, "add the tracked landmarks x0..x67,y0..y67");
   cmd->add_flag("--stats", options->stats, "print per-stage latency and frames per second on stderr");
+  cmd->add_option("--side", options->side, "side-camera recording of the same take: adds protrusion_side");
+  cmd->add_option("--side-facing", options->side_facing, "where the face looks in the side view")
+      ->check(CLI::IsMember({"right", "left"}))
+      ->capture_default_str();
+  cmd->add_option("--side-neutral-frames", options->side_neutral_frames,
+                  "first side frames at rest that fix the reference line")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
   cmd->callback([options] { run_process(*options); });
 }
 

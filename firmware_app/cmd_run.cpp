@@ -8,6 +8,7 @@
 #include "firmware_app/commands.hpp"
 #include "firmware_app/config.hpp"
 #include "firmware_app/from_config.hpp"
+#include "firmware_app/model_files.hpp"
 #include "firmware_app/neutral_capture.hpp"
 #include "firmware_app/outputs.hpp"
 #include "firmware_app/performer_profile.hpp"
@@ -49,6 +50,7 @@ struct Daemon {
   std::vector<std::unique_ptr<Output>> outputs;
   std::unique_ptr<Pipeline> pipeline;
   std::uint32_t calibrate_requests_seen = 0;
+  bool model_mismatch = false;  // the performer's mouth and the model's are two classes apart
 };
 
 PerformerProfile load_performer(const Config& config) {
@@ -65,6 +67,7 @@ void update_daemon_status(Daemon& daemon) {
   std::uint16_t status = 0;
   if (daemon.profile.calibrated) status |= kStatusCalibrated;
   if (daemon.recorder->recording()) status |= kStatusRecording;
+  if (daemon.model_mismatch) status |= kStatusModelMismatch;
   daemon.pipeline->control().daemon_status.store(status, std::memory_order_relaxed);
 }
 
@@ -77,6 +80,10 @@ std::unique_ptr<Daemon> start_daemon(Config config, std::unique_ptr<FrameProcess
   settings.channels = config.channels;
   settings.safety = config.safety;
   daemon->pipeline = std::make_unique<Pipeline>(make_source(config), std::move(processor), settings);
+  if (auto side = make_side_camera(config)) {
+    spdlog::info("side camera: {}", side->describe());
+    daemon->pipeline->set_side_camera(std::move(side));
+  }
   daemon->recorder = std::make_unique<TakeRecorder>(daemon->pipeline->describe_source(),
                                                     std::chrono::milliseconds(config.recording.flush_interval_ms));
   daemon->pipeline->add_sink(*daemon->recorder);
@@ -84,6 +91,14 @@ std::unique_ptr<Daemon> start_daemon(Config config, std::unique_ptr<FrameProcess
   daemon->neutral_capture = std::make_unique<NeutralCapture>(config.performer.neutral_frames);
   daemon->pipeline->add_sink(*daemon->neutral_capture);
   daemon->profile = load_performer(config);
+  if (daemon->profile.face_indices) {
+    const Compatibility check = model_compatibility(daemon->profile, load_model_file(config.model.file));
+    daemon->model_mismatch = check.warn;
+    if (check.warn)
+      spdlog::warn("performer {}: vertical mouth height is {}, the model's {}: expect clearly worse lips (DESIGN.md 4.6)",
+                   config.performer.name, index_class_name(check.performer.vertical_mouth_height),
+                   index_class_name(check.model.vertical_mouth_height));
+  }
   daemon->pipeline->set_profile(daemon->profile);
   daemon->outputs = make_outputs(config, daemon->pipeline->control());
   for (const auto& output : daemon->outputs) {
@@ -110,8 +125,13 @@ class StatusReporter {
     FrameResult latest;
     pipeline.latest(latest);
     const std::string mouth =
-        latest.tracked ? fmt::format("mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f}", latest.measures.height_fit,
-                                     latest.measures.width_fit, latest.measures.protrusion_3d)
+        latest.tracked
+            ? fmt::format("mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f} ({}), drive open {:.2f} width {:.2f} "
+                          "protrusion {:.2f}",
+                          latest.measures.height_fit, latest.measures.width_fit,
+                          latest.side_used ? latest.protrusion_side : latest.measures.protrusion_3d,
+                          latest.side_used ? "side camera" : "3D fit", latest.signals[Signal::kOpen],
+                          latest.signals[Signal::kWidth], latest.signals[Signal::kProtrusion])
                        : std::string("not tracked");
     std::string failing;
     for (const auto& output : outputs)
@@ -182,6 +202,7 @@ void handle_commands(Daemon& daemon, bool calibrate_signal) {
   const std::uint32_t requests = control.calibrate_requests.load(std::memory_order_relaxed);
   if (calibrate_signal || requests != daemon.calibrate_requests_seen) {
     daemon.calibrate_requests_seen = requests;
+    daemon.pipeline->recalibrate_side();
     if (daemon.neutral_capture->arm())
       spdlog::info("calibrating: hold a neutral face for {} tracked frames", daemon.config.performer.neutral_frames);
   }

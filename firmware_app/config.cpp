@@ -186,18 +186,18 @@ void read_faults(Section faults, SimulatedCameraOptions::FaultInjection& out) {
   faults.reject_unknown_keys();
 }
 
-void read_camera(Section camera, Config& config) {
+void read_camera(Section camera, Config::Camera& config_camera, bool check_devices = true) {
   const std::string type = camera.one_of("type", "sim", {"sim", "v4l2", "libcamera"});
-  config.camera.type = type == "sim"    ? Config::Camera::Type::kSim
+  config_camera.type = type == "sim"    ? Config::Camera::Type::kSim
                        : type == "v4l2" ? Config::Camera::Type::kV4l2
                                         : Config::Camera::Type::kLibcamera;
 #ifndef LIPDRIVE_HAVE_LIBCAMERA
-  if (config.camera.type == Config::Camera::Type::kLibcamera)
+  if (config_camera.type == Config::Camera::Type::kLibcamera)
     camera.fail("type", "this build has no libcamera support (configure with -DLIPDRIVE_WITH_LIBCAMERA=ON)");
 #endif
 
   // Both cameras' keys are allowed whatever the type, so switching type is a one-line edit.
-  SimulatedCameraOptions& sim = config.camera.sim;
+  SimulatedCameraOptions& sim = config_camera.sim;
   const std::string input = camera.string("input", "");
   sim.input = input.empty() ? default_fixture_path() : fs::path(input);
   sim.real_time = camera.boolean("real_time", true);
@@ -205,7 +205,7 @@ void read_camera(Section camera, Config& config) {
   sim.replay_rate = camera.integer("replay_fps", 0, 0, 240);
   read_faults(camera.table("faults"), sim.faults);
 
-  V4l2Options& v4l2 = config.camera.v4l2;
+  V4l2Options& v4l2 = config_camera.v4l2;
   v4l2.device = camera.string("device", "/dev/video0");
   const std::string format = camera.string("format", "auto");
   try {
@@ -216,13 +216,24 @@ void read_camera(Section camera, Config& config) {
   v4l2.width = static_cast<unsigned>(camera.integer("width", 640, 0, 8192));
   v4l2.height = static_cast<unsigned>(camera.integer("height", 480, 0, 8192));
   v4l2.frame_rate = camera.integer("fps", 60, 1, 240);
-  config.camera.libcamera_id = camera.string("camera_id", "");
+  config_camera.libcamera_id = camera.string("camera_id", "");
   camera.reject_unknown_keys();
 
-  if (config.camera.type == Config::Camera::Type::kSim)
+  if (!check_devices) return;
+  if (config_camera.type == Config::Camera::Type::kSim)
     existing(camera, "input", sim.input, "file or folder");
-  else if (config.camera.type == Config::Camera::Type::kV4l2)
+  else if (config_camera.type == Config::Camera::Type::kV4l2)
     existing(camera, "device", v4l2.device, "device");
+}
+
+/// [side_camera]: the keys of [camera], plus whether it is used and where the face looks.
+void read_side_camera(Section side, Config& config) {
+  const bool enabled = side.boolean("enabled", false);
+  const std::string facing = side.one_of("facing", "right", {"right", "left"});
+  config.side_facing = facing == "right" ? ProfileFacing::kRight : ProfileFacing::kLeft;
+  Config::Camera camera;
+  read_camera(side, camera, enabled);
+  if (enabled) config.side_camera = camera;
 }
 
 void read_recording(Section recording, Config& config) {
@@ -404,7 +415,8 @@ Config load_config(const fs::path& file) {
   read_log(top.table("log"), config);
   read_model(top.table("model"), config);
   read_tracker(top.table("tracker"), config);
-  read_camera(top.table("camera"), config);
+  read_camera(top.table("camera"), config.camera);
+  read_side_camera(top.table("side_camera"), config);
   read_recording(top.table("recording"), config);
   read_status(top.table("status"), config);
   read_performer(top.table("performer"), config);

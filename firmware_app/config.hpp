@@ -7,6 +7,7 @@
 
 #include "core/drive_channels.hpp"
 #include "core/landmarks.hpp"
+#include "core/side_profile.hpp"
 #include "drivers/v4l2_camera.hpp"
 #include "firmware_app/command_error.hpp"
 #include "sim/simulated_camera.hpp"
@@ -109,6 +110,9 @@ struct Config {
     V4l2Options v4l2;
     std::string libcamera_id;    // "" = the first camera; size and rate as for v4l2
   } camera;
+
+  std::optional<Camera> side_camera;  // [side_camera] when enabled
+  ProfileFacing side_facing = ProfileFacing::kRight;
 
   struct Recording {
     std::filesystem::path dir;

@@ -12,24 +12,38 @@
 
 namespace lipdrive {
 
-std::unique_ptr<FrameSource> make_source(const Config& config) {
-  if (config.camera.type == Config::Camera::Type::kV4l2) return std::make_unique<V4l2Camera>(config.camera.v4l2);
+namespace {
+
+/// The camera of one configuration table ("camera" or "side_camera", for messages).
+std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Config& config, std::string_view table) {
+  if (camera.type == Config::Camera::Type::kV4l2) return std::make_unique<V4l2Camera>(camera.v4l2);
 #ifdef LIPDRIVE_HAVE_LIBCAMERA
-  if (config.camera.type == Config::Camera::Type::kLibcamera) {
-    const V4l2Options& format = config.camera.v4l2;
+  if (camera.type == Config::Camera::Type::kLibcamera) {
+    const V4l2Options& format = camera.v4l2;
     try {
       return std::make_unique<LibcameraCamera>(
-          LibcameraOptions{config.camera.libcamera_id, format.width, format.height, format.frame_rate});
+          LibcameraOptions{camera.libcamera_id, format.width, format.height, format.frame_rate});
     } catch (const SourceError& e) {
-      throw ConfigError(fmt::format("{}: key camera.type: {}", config.file.string(), e.what()));
+      throw ConfigError(fmt::format("{}: key {}.type: {}", config.file.string(), table, e.what()));
     }
   }
 #endif
   try {
-    return std::make_unique<SimulatedCamera>(config.camera.sim);
+    return std::make_unique<SimulatedCamera>(camera.sim);
   } catch (const SourceError& e) {
-    throw ConfigError(fmt::format("{}: key camera.input: {}", config.file.string(), e.what()));
+    throw ConfigError(fmt::format("{}: key {}.input: {}", config.file.string(), table, e.what()));
   }
+}
+
+}  // namespace
+
+std::unique_ptr<FrameSource> make_source(const Config& config) { return make_camera(config.camera, config, "camera"); }
+
+std::unique_ptr<SideCamera> make_side_camera(const Config& config) {
+  if (!config.side_camera) return nullptr;
+  return std::make_unique<SideCamera>(make_camera(*config.side_camera, config, "side_camera"),
+                                      SideProfileSettings{.facing = config.side_facing},
+                                      config.performer.neutral_frames);
 }
 
 std::unique_ptr<FrameProcessor> make_processor(const Config& config) {

@@ -65,8 +65,21 @@ PerformerProfile load_profile(const fs::path& file) {
                                     {"protrusion", profile.protrusion}}) {
     if (range.min == range.max) malformed(file, fmt::format("{}.max", name), "must differ from min");
   }
+  if (const toml::table* indices = root["indices"].as_table()) {
+    std::array<double, kNumFacialIndices> values{};
+    for (int i = 0; i < kNumFacialIndices; ++i)
+      values[i] = read_number(root, file, "indices", kFacialIndices[static_cast<std::size_t>(i)].name);
+    profile.face_indices = values;
+  }
   profile.calibrated = true;
   return profile;
+}
+
+Compatibility model_compatibility(const PerformerProfile& profile, const MorphableModel& model) {
+  if (!profile.face_indices) throw std::invalid_argument("the profile has no facial indices");
+  FacialMeasures performer;
+  performer.indices = *profile.face_indices;
+  return compatibility(performer, facial_measures(frontal_neutral_landmarks(model)));
 }
 
 void save_profile(const fs::path& file, const std::string& performer, const PerformerProfile& profile) {
@@ -80,6 +93,12 @@ void save_profile(const fs::path& file, const std::string& performer, const Perf
       {"width", range_table(profile.width)},
       {"protrusion", range_table(profile.protrusion)},
   };
+  if (profile.face_indices) {
+    toml::table indices;
+    for (int i = 0; i < kNumFacialIndices; ++i)
+      indices.insert(kFacialIndices[static_cast<std::size_t>(i)].name, (*profile.face_indices)[static_cast<std::size_t>(i)]);
+    root.insert("indices", std::move(indices));
+  }
   std::error_code ec;
   if (file.has_parent_path()) fs::create_directories(file.parent_path(), ec);
   const fs::path temporary = file.string() + ".tmp";

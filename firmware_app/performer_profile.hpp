@@ -20,4 +20,8 @@ PerformerProfile load_profile(const std::filesystem::path& file);
 /// profile, never half of one. Creates the directory. Throws CommandError on failure.
 void save_profile(const std::filesystem::path& file, const std::string& performer, const PerformerProfile& profile);
 
+/// Performer <-> model compatibility (DESIGN.md 4.6) from the profile's indices and the
+/// model's neutral pose. Throws std::invalid_argument when the profile has no indices.
+Compatibility model_compatibility(const PerformerProfile& profile, const MorphableModel& model);
+
 }  // namespace lipdrive

@@ -23,10 +23,12 @@ Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FramePro
       processor_(std::move(processor)),
       settings_(std::move(settings)),
       source_description_(source_->describe()),
-      channels_(settings_.channels, settings_.safety),
-      // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
-      max_result_age_ns_(source_->frame_rate() > 0 ? static_cast<std::int64_t>(3e9 / source_->frame_rate())
-                                                    : 100'000'000) {
+      channels_(settings_.channels, settings_.safety) {
+  const double fps = source_->frame_rate();
+  const auto period_ns = static_cast<std::int64_t>(1e9 / (fps > 0 ? fps : 30.0));
+  // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
+  max_result_age_ns_ = 3 * period_ns;
+  half_period_ns_ = period_ns / 2;
   profile_.publish(PerformerProfile{});
 }
 
@@ -36,6 +38,7 @@ void Pipeline::start() {
   start_ns_ = monotonic_ns();
   capture_heartbeat_ns_ = start_ns_;
   last_watchdog_ns_ = 0;
+  if (side_) side_->start();
   capture_thread_ = std::thread(&Pipeline::capture_loop, this);
   processing_thread_ = std::thread(&Pipeline::processing_loop, this);
   output_thread_ = std::thread(&Pipeline::output_loop, this);
@@ -47,6 +50,7 @@ void Pipeline::stop() {
   stop_processing_ = true;
   if (capture_thread_.joinable()) capture_thread_.join();
   if (processing_thread_.joinable()) processing_thread_.join();
+  if (side_) side_->stop();
   stop_outputs_ = true;
   if (output_thread_.joinable()) output_thread_.join();
 }
@@ -127,6 +131,11 @@ void Pipeline::process(const CapturedFrame& frame) {
     PerformerProfile profile;
     profile_.read(profile);
     result.signals = drive_signals(measurement.measures, measurement.visemes, profile);
+    if (const auto side = side_ ? side_->protrusion_near(frame.capture_time_ns, half_period_ns_) : std::nullopt) {
+      result.side_used = true;
+      result.protrusion_side = *side;
+      result.signals[Signal::kProtrusion] = static_cast<float>(profile.protrusion_side.scale(*side));
+    }
   }
   result.width = frame.gray.cols;
   result.height = frame.gray.rows;
@@ -186,6 +195,7 @@ void Pipeline::output_loop() {
     }
     std::uint16_t status = control_.daemon_status.load(std::memory_order_relaxed);
     if (tracked) status |= kStatusTracking;
+    if (tracked && result.side_used) status |= kStatusSideCamera;
     if (channels_.fail_safe_active()) status |= kStatusFailSafe;
     if (enabled) status |= kStatusOutputsEnabled;
     if (connected) status |= kStatusCameraConnected;

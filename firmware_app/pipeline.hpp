@@ -18,6 +18,7 @@
 #include "firmware_app/drive_output.hpp"
 #include "firmware_app/frame_processor.hpp"
 #include "firmware_app/latency_histogram.hpp"
+#include "firmware_app/side_camera.hpp"
 #include "firmware_app/latest_frame.hpp"
 
 #include <array>
@@ -41,6 +42,8 @@ struct FrameResult {
   MouthMeasures measures;               // valid when tracked, zero otherwise
   VisemeWeights visemes{};              // FrameMeasurement::visemes when tracked, zero otherwise
   DriveSignals signals;                 // calibrated values for the drive, zero when not tracked
+  bool side_used = false;               // protrusion came from the side camera (protrusion_side)
+  double protrusion_side = 0;           // side-view protrusion over the nose length, when side_used
   int width = 0, height = 0;            // frame size in pixels
 };
 
@@ -89,6 +92,12 @@ class Pipeline {
   void add_output(Output& output) { outputs_.push_back(&output); }
   const std::vector<Output*>& outputs() const { return outputs_; }
   void add_sink(ResultSink& sink) { sinks_.push_back(&sink); }
+  /// Before start(): the side camera, paired with front frames by capture time.
+  void set_side_camera(std::unique_ptr<SideCamera> side) { side_ = std::move(side); }
+  /// Any thread: fix the side camera's reference line again on the next frames.
+  void recalibrate_side() {
+    if (side_) side_->recalibrate();
+  }
 
   void start();
   /// Finishes the frame in hand, gives the outputs the neutral result, joins all threads.
@@ -128,6 +137,8 @@ class Pipeline {
 
   std::unique_ptr<FrameSource> source_;
   std::unique_ptr<FrameProcessor> processor_;
+  std::unique_ptr<SideCamera> side_;
+  std::int64_t half_period_ns_;  // pairing window: half the front camera's frame period
   PipelineSettings settings_;
   std::string source_description_;
   std::vector<Output*> outputs_;

@@ -63,6 +63,9 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
   EXPECT_NE(output.find("performer grid"), std::string::npos) << output;
   const PerformerProfile profile = load_profile(dir / "grid.toml");
   EXPECT_TRUE(profile.calibrated);
+  ASSERT_TRUE(profile.face_indices.has_value()) << "the neutral face's indices (DESIGN.md 4.6)";
+  EXPECT_GT((*profile.face_indices)[kVerticalMouthHeightIndex], 5);
+  EXPECT_NE(output.find("vertical mouth height"), std::string::npos) << output;
   EXPECT_GT(profile.open.max, profile.open.min + 0.1) << output;
 
   // No ease or hold, so the channel shows the calibrated signal itself.

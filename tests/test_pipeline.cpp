@@ -324,6 +324,47 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   EXPECT_TRUE(watch.followed_again) << "the drive follows the face again after the reconnect";
 }
 
+TEST_F(PipelineTest, SideCameraMeasuresProtrusionAndTheFrontCarriesOnWithoutIt) {
+  const fs::path side_clip = fs::path(LIPDRIVE_FIXTURE_DIR) / "side_view.avi";
+  if (!fs::exists(side_clip)) GTEST_SKIP() << "no generated fixture " << side_clip;
+  SimulatedCameraOptions front = clip_options();
+  front.real_time = true;
+  SimulatedCameraOptions side = front;
+  side.input = side_clip;
+  side.faults.disconnect_after = 100;  // 4 s in, the side camera goes away for 1.5 s
+  side.faults.reconnect = 1500ms;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(front), make_processor(), PipelineSettings{});
+  // The reference is fixed on the side clip's first 10 frames: it starts at rest.
+  pipeline.set_side_camera(std::make_unique<SideCamera>(std::make_unique<SimulatedCamera>(side), SideProfileSettings{}, 10));
+  pipeline.start();
+  int with_side = 0, front_alone = 0, side_back = 0;
+  double most_protruded = 0;
+  std::uint64_t seen = 0;
+  const auto deadline = std::chrono::steady_clock::now() + 8s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    FrameResult r;
+    pipeline.latest(r);
+    if (r.sequence != seen && r.tracked) {
+      seen = r.sequence;
+      if (r.side_used) {
+        ++with_side;
+        most_protruded = std::max(most_protruded, r.protrusion_side);
+        side_back += front_alone > 10;
+      } else if (with_side > 0) {
+        ++front_alone;
+      }
+    }
+    std::this_thread::sleep_for(5ms);
+  }
+  pipeline.stop();
+  RecordProperty("frames_with_side", with_side);
+  RecordProperty("frames_front_alone", front_alone);
+  EXPECT_GT(with_side, 60) << "front and side frames paired";
+  EXPECT_GT(most_protruded, 0.05) << "the rounded visemes of the side clip push the lips forward";
+  EXPECT_GT(front_alone, 25) << "tracking went on while the side camera was away";
+  EXPECT_GT(side_back, 5) << "the side camera was used again once it was back";
+}
+
 TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
   Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
   TakeRecorder recorder("clip", 50ms);

@@ -3,6 +3,7 @@
 #include "core/metrics.hpp"
 #include "firmware_app/csv_table.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -92,6 +93,27 @@ TEST_F(ProcessTest, GeneratedTalkingFaceFollowsItsTruth) {
     const SeriesAgreement a = compare_series(truth_width, numeric_column(output, column));
     EXPECT_LE(a.rmse_scaled, 0.10) << column;
   }
+}
+
+TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {
+  const fs::path front = kFixtureDir / "talking_face.avi", side = kFixtureDir / "side_view.avi",
+                 truth_csv = kFixtureDir / "side_view_truth.csv";
+  if (!fs::exists(front) || !fs::exists(side)) GTEST_SKIP() << "no generated fixtures in " << kFixtureDir;
+  const fs::path out = dir_ / "with_side.csv";
+  const ProcessRun run = run_process(fmt::format("{} --side {} --out {}", front.string(), side.string(), out.string()), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  const CsvTable output = read_csv_table(out);
+  ASSERT_EQ(output.header.back(), "protrusion_side");
+  const CsvTable truth = read_csv_table(truth_csv);
+  // The side clip is the shorter one: its rows pair with the first front rows, frame for frame.
+  std::vector<double> measured = numeric_column(output, "protrusion_side");
+  measured.resize(truth.rows.size());
+  const SeriesAgreement a = compare_series(numeric_column(truth, "protrusion_truth"), measured);
+  RecordProperty("protrusion_side_rmse_scaled", std::to_string(a.rmse_scaled));
+  RecordProperty("protrusion_side_r", std::to_string(a.pearson_r));
+  EXPECT_EQ(a.pairs_used, static_cast<int>(truth.rows.size())) << "every side frame measured";
+  EXPECT_GE(a.pearson_r, 0.95);
+  EXPECT_LE(a.rmse_scaled, 0.1);
 }
 
 TEST_F(ProcessTest, GridSpeechClosesTheLipsOnBilabials) {

@@ -1,0 +1,134 @@
+// `lipdrive run` end to end on the simulated camera with real peers on its outputs: a libmodbus
+// master reads the register map over TCP while the daemon runs, a reader on a pty pair decodes
+// the framed serial protocol, and after SIGTERM the last thing on every output is neutral.
+#include "daemon_process.hpp"
+#include "drivers/modbus_link.hpp"
+#include "firmware_app/drive_output.hpp"
+#include "firmware_app/modbus_output.hpp"
+#include "serial_peers.hpp"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <modbus/modbus.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <algorithm>
+#include <cerrno>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using ::testing::HasSubstr;
+
+const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+constexpr int kWidthNeutral = 500;
+
+/// A loopback TCP port nobody listens on right now.
+int free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
+  socklen_t size = sizeof address;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
+  ::close(fd);
+  return ntohs(address.sin_port);
+}
+
+/// The "median X ms, p99 Y ms" figures of the --stats line that starts with `prefix`.
+std::string stats_line(const std::string& log, const std::string& prefix) {
+  const auto at = log.find(prefix);
+  return at == std::string::npos ? "" : log.substr(at, log.find('\n', at) - at);
+}
+
+TEST(DaemonOutputs, ModbusAndSerialFollowTheMouthAndEndNeutral) {
+  if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
+  const test::TempDir dir;
+  const test::PtyPair line(dir.path());
+  test::PtyReader reader(line.b);
+  const int port = free_port();
+  const fs::path config = dir.path() / "lipdrive.toml";
+  std::ofstream(config) << fmt::format(R"([model]
+file = "{}"
+[camera]
+input = "{}"
+real_time = true
+loop = true
+replay_fps = 60
+[status]
+print_interval_ms = 0
+[safety]
+hold_ms = 100
+ease_ms = 200
+[[channels]]
+name = "open"
+signal = "open"
+[[channels]]
+name = "width"
+signal = "width"
+neutral = {}
+[[outputs.modbus_server]]
+port = {}
+[[outputs.serial]]
+mode = "framed"
+device = "{}"
+)",
+                                       kModel.string(), kClip.string(), kWidthNeutral, port, line.a.string());
+  test::DaemonProcess daemon(config, dir.path() / "stderr.txt", "--stats");
+  ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
+
+  // The register map while the daemon runs.
+  const ModbusContext master(modbus_new_tcp("127.0.0.1", port));
+  ASSERT_TRUE(test::eventually([&] { return modbus_connect(master.get()) == 0; }, 5s)) << modbus_strerror(errno);
+  modbus_set_response_timeout(master.get(), 1, 0);
+  constexpr int kRegisters = modbus_map::kFirstChannel + 2;
+  std::vector<std::uint16_t> heartbeats, opens;
+  bool tracking_seen = false;
+  const auto until = std::chrono::steady_clock::now() + 3s;
+  while (std::chrono::steady_clock::now() < until) {
+    std::array<std::uint16_t, kRegisters> input{};
+    ASSERT_EQ(modbus_read_input_registers(master.get(), 0, kRegisters, input.data()), kRegisters)
+        << modbus_strerror(errno);
+    heartbeats.push_back(input[modbus_map::kHeartbeat]);
+    opens.push_back(input[modbus_map::kFirstChannel]);
+    tracking_seen |= (input[modbus_map::kStatus] & kStatusTracking) != 0;
+    EXPECT_EQ(input[modbus_map::kChannelCount], 2);
+    reader.read_available();
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_TRUE(tracking_seen);
+  EXPECT_GT(std::ranges::count_if(heartbeats, [&](std::uint16_t h) { return h != heartbeats.front(); }), 100)
+      << "the heartbeat increments";
+  const auto [lowest, highest] = std::ranges::minmax(opens);
+  EXPECT_GT(highest - lowest, 200) << "the open channel follows the talking mouth";
+
+  daemon.signal(SIGTERM);
+  ASSERT_EQ(daemon.wait(1000ms), 0) << daemon.log();
+  std::this_thread::sleep_for(100ms);
+  const test::FrameStream stream = test::decode_frames(reader.read_available());
+  ASSERT_GT(stream.frames.size(), 100u) << "framed frames over the pty";
+  EXPECT_EQ(stream.skipped_bytes, 0u) << "every byte belongs to a frame with a valid CRC";
+  int open_moves = 0;
+  for (std::size_t i = 1; i < stream.frames.size(); ++i)
+    open_moves += stream.frames[i].values[0] != stream.frames[i - 1].values[0];
+  EXPECT_GT(open_moves, 50);
+  const test::DecodedFrame& last = stream.frames.back();
+  EXPECT_EQ(last.values, (std::vector<std::int16_t>{0, kWidthNeutral})) << "the last frame is the neutral pose";
+  EXPECT_TRUE(last.status & kStatusFailSafe);
+  EXPECT_FALSE(last.status & kStatusTracking);
+
+  const std::string log = daemon.log();
+  const std::string wire = stats_line(log, "capture->wire latency, serial");
+  EXPECT_THAT(wire, HasSubstr("median")) << log;
+  RecordProperty("serial_capture_to_wire", wire);
+  RecordProperty("capture_to_processed", stats_line(log, "capture->processed latency"));
+}
+
+}  // namespace
+}  // namespace lipdrive
