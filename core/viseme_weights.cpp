@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <charconv>
@@ -145,7 +146,8 @@ VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& obser
   std::size_t best = 0;
   for (std::size_t p = 0; p < count; ++p) {
     // The affine camera that best maps this pose's landmarks onto the observed ones (linear
-    // least squares, as in the fit's step 1), then the residual: ML over pose and camera.
+    // least squares, as in the fit's step 1), made weak-perspective, then the residual:
+    // ML over pose and camera.
     Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
     Eigen::Matrix<double, 4, 2> rhs = Eigen::Matrix<double, 4, 2>::Zero();
     for (const int i : landmarks) {
@@ -154,7 +156,23 @@ VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& obser
       normal.noalias() += x * x.transpose();
       rhs.noalias() += x * observed.col(i).transpose();
     }
-    const Eigen::Matrix<double, 4, 2> camera = Eigen::LDLT<Eigen::Matrix4d>(normal).solve(rhs);
+    Eigen::Matrix<double, 4, 2> camera = Eigen::LDLT<Eigen::Matrix4d>(normal).solve(rhs);
+    {
+      // Nearest weak-perspective camera (scaled rotation rows), translation re-fitted.
+      const Eigen::Matrix<double, 2, 3> m = camera.topRows<3>().transpose();
+      const Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      const double scale = svd.singularValues().mean();
+      const Eigen::Matrix<double, 2, 3> r = scale * svd.matrixU() * svd.matrixV().leftCols<2>().transpose();
+      Eigen::Vector2d t = Eigen::Vector2d::Zero();
+      int n = 0;
+      for (const int i : landmarks) {
+        if (!observed.col(i).allFinite() || !poses_[p].landmarks.col(i).allFinite()) continue;
+        t += observed.col(i) - r * poses_[p].landmarks.col(i);
+        ++n;
+      }
+      camera.topRows<3>() = r.transpose();
+      camera.row(3) = (t / std::max(n, 1)).transpose();
+    }
     double d = 0;
     for (const int i : landmarks) {
       if (!observed.col(i).allFinite() || !poses_[p].landmarks.col(i).allFinite()) continue;

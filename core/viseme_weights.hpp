@@ -35,13 +35,15 @@ class VisemeSolver {
   /// The weights of fitted coefficients (the first num_components() are read), each in [0, 1].
   VisemeWeights solve(const Coefficients& alpha) const;
 
-  /// The weights of a fitted frame, judged in the image: the example pose (neutral or
-  /// "<viseme>_<percent>") whose landmarks, projected through the fit's camera, lie nearest
-  /// to `observed` over `landmarks` is the maximum-likelihood pose under i.i.d. Gaussian
-  /// landmark noise; its viseme gets the intensity refined between the neighbouring
-  /// intensities (parabola through the three distances), and what the fitted coefficients
-  /// show beyond that pose goes to the NNLS of solve(), never above the dominant weight.
-  /// `observed` is the detected landmarks (unbiased) or fit.projected. Allocates nothing.
+  /// The weights of a fitted frame, judged in the image: for every example pose (neutral or
+  /// "<viseme>_<percent>") the weak-perspective camera that maps its landmarks onto
+  /// `observed` over `landmarks` (least-squares affine, projected onto scaled rotation rows:
+  /// an affine camera's shear and unequal scales would absorb mouth shapes), and the residual; the nearest pose is the maximum-likelihood (pose,
+  /// camera) under i.i.d. Gaussian landmark noise. Its viseme gets the intensity refined
+  /// between the neighbouring intensities (parabola through the three distances); what the
+  /// fitted coefficients show beyond that pose goes to the NNLS of solve(), always below the
+  /// dominant weight. Nearest to neutral: solve(fit.coefficients). `observed` is the detected
+  /// landmarks (unbiased) or fit.projected. Allocates nothing; ~161 4x4 solves and 2x3 SVDs per frame.
   VisemeWeights solve(const FitOutput& fit, const Landmarks2D& observed, std::span<const int> landmarks) const;
 
   /// 2-norm condition number of the 16 viseme directions: how well the model's components

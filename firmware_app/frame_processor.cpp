@@ -24,7 +24,7 @@ std::string csv_field(std::string_view text) {
 
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                                std::shared_ptr<const ShapePredictorData> predictor)
-    : fitter_(model, set, settings), reference_(mouth_reference(model)),
+    : fitter_(model, set, settings), set_(set), reference_(mouth_reference(model)),
       visemes_(make_viseme_solver(model)),
       tracker_(std::move(predictor)) {}
 
@@ -44,7 +44,7 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   if (!tracker_.check_fit(r.landmarks, fit_.reprojection_error_px)) return r;
   start = Clock::now();
   r.measures = measure_mouth(r.landmarks, fit_, reference_);
-  if (visemes_) r.visemes = visemes_->solve(fit_.coefficients);
+  if (visemes_) r.visemes = visemes_->solve(fit_, r.landmarks, landmark_indices(set_));
   r.measures_ms = ms_since(start);
   r.tracked = true;
   return r;

@@ -40,6 +40,7 @@ class FrameProcessor {
 
  private:
   Fitter fitter_;
+  LandmarkSet set_;  // the landmarks the fit and the viseme pose match use
   MouthReference reference_;
   std::optional<VisemeSolver> visemes_;  // nullopt: the model lacks the viseme poses
   FaceTracker tracker_;

@@ -12,6 +12,8 @@ case "$job" in
 esac
 
 ./scripts/install-deps.sh
+# ccache (when installed, see CMakeLists.txt) shares results between checkouts of the tree.
+export CCACHE_BASEDIR="$PWD"
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build -j"$(nproc)"
 

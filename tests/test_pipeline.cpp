@@ -305,8 +305,9 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   options.faults.disconnect_after = 40;
   options.faults.reconnect = 1500ms;
   PipelineSettings settings;
-  // Neutral at the open end, where the talking mouth never sits for long.
-  settings.channels = {ChannelSpec{.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 1000}};
+  // The signal (0..1) maps to 0..500; neutral sits at 1000, which only the fail-safe reaches.
+  settings.channels = {
+      ChannelSpec{.name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
   settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings);
   OutageWatch watch(1000);

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cstdlib>
 #include <cmath>
@@ -190,7 +191,13 @@ struct Recovery {
   int poses = 0, recovered = 0, right_viseme = 0;
   double rms_intensity_error = 0;
   std::string confusions;  // truth->largest xN
+  std::array<int, 10> misses_by_intensity{};  // poses not recovered at 10 %, 20 %, ... 100 %
   double rate() const { return static_cast<double>(recovered) / poses; }
+  std::string misses() const {
+    std::string out;
+    for (int k = 0; k < 10; ++k) out += std::to_string(10 * (k + 1)) + "%:" + std::to_string(misses_by_intensity[k]) + " ";
+    return out;
+  }
   std::string summary() const {
     return std::to_string(recovered) + "/" + std::to_string(poses) + " recovered (largest weight right in " +
            std::to_string(right_viseme) + "), RMS intensity error " + std::to_string(rms_intensity_error);
@@ -223,6 +230,7 @@ Recovery measure_recovery(const MorphableModel& model, double eye_span_px, Weigh
     if (largest(w) == viseme) ++r.right_viseme;
     else ++confusions[{kVisemeNames[viseme], kVisemeNames[largest(w)]}];
     if (largest(w) == viseme && error <= 0.15) ++r.recovered;
+    else ++r.misses_by_intensity[static_cast<std::size_t>(std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9))];
   }
   r.rms_intensity_error = std::sqrt(sum_squared / r.poses);
   for (const auto& [pair, count] : confusions)
@@ -253,10 +261,16 @@ Recovery oracle_recovery(const MorphableModel& model, double eye_span_px) {
       if (d < best_distance) best_distance = d, best = q;
     }
     ++r.poses;
-    if (model.pose_names[best] == "neutral") continue;
+    const auto miss = [&] { ++r.misses_by_intensity[static_cast<std::size_t>(std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9))]; };
+    if (model.pose_names[best] == "neutral") {
+      miss();
+      continue;
+    }
     const auto [found, found_intensity] = viseme_and_intensity(model.pose_names[best]);
     r.right_viseme += found == viseme;
-    r.recovered += found == viseme && std::abs(found_intensity - intensity) <= 0.15;
+    const bool ok = found == viseme && std::abs(found_intensity - intensity) <= 0.15;
+    r.recovered += ok;
+    if (!ok) miss();
   }
   return r;
 }
@@ -289,9 +303,13 @@ TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
     RecordProperty("nnls_recovery_" + at, a.summary());
     RecordProperty("pose_match_recovery_" + at, b.summary());
     RecordProperty("pose_match_confusions_" + at, b.confusions);
-    RecordProperty("oracle_true_camera_recovery_" + at, o.summary());
-    figures += "at " + at + ": NNLS " + a.summary() + "; pose match " + b.summary() + "; oracle (true camera) " +
-               std::to_string(o.recovered) + "/" + std::to_string(o.poses) + ". ";
+    RecordProperty("oracle_true_camera_recovery_" + at, std::to_string(o.recovered) + "/" + std::to_string(o.poses) +
+                                                         " (viseme right in " + std::to_string(o.right_viseme) + ")");
+    RecordProperty("pose_match_misses_by_intensity_" + at, b.misses());
+    RecordProperty("oracle_misses_by_intensity_" + at, o.misses());
+    figures += "at " + at + ": NNLS " + a.summary() + "; pose match " + b.summary() + " (misses by intensity " + b.misses() +
+               "); oracle (true camera) " + std::to_string(o.recovered) + "/" + std::to_string(o.poses) +
+               " (misses " + o.misses() + "). ";
     if (span == kRigEyeSpanPx) rig = b;
   }
   if (rig.rate() < 0.9)
