@@ -159,10 +159,15 @@ VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& obser
     Eigen::Matrix<double, 4, 2> camera = Eigen::LDLT<Eigen::Matrix4d>(normal).solve(rhs);
     {
       // Nearest weak-perspective camera (scaled rotation rows), translation re-fitted.
+      // With M = U S Vᵀ that is (σ1+σ2)/2 · U [I 0] Vᵀ = (σ1+σ2)/2 · (M Mᵀ)^(-1/2) M; the square
+      // root of the 2x2 A = M Mᵀ has the closed form (A + √det A · I) / √(tr A + 2√det A), and
+      // σ1 + σ2 = √(tr A + 2√det A): no SVD per pose.
       const Eigen::Matrix<double, 2, 3> m = camera.topRows<3>().transpose();
-      const Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      const double scale = svd.singularValues().mean();
-      const Eigen::Matrix<double, 2, 3> r = scale * svd.matrixU() * svd.matrixV().leftCols<2>().transpose();
+      const Eigen::Matrix2d a = m * m.transpose();
+      const double root_det = std::sqrt(std::max(a.determinant(), 0.0));
+      const double singular_sum = std::sqrt(std::max(a.trace() + 2 * root_det, 1e-300));
+      const Eigen::Matrix2d root = (a + root_det * Eigen::Matrix2d::Identity()) / singular_sum;
+      const Eigen::Matrix<double, 2, 3> r = 0.5 * singular_sum * root.inverse() * m;
       Eigen::Vector2d t = Eigen::Vector2d::Zero();
       int n = 0;
       for (const int i : landmarks) {
