@@ -59,6 +59,7 @@ class TempDir {
 class PtyPair {
  public:
   explicit PtyPair(const std::filesystem::path& dir) : a(dir / "a"), b(dir / "b") {
+    std::filesystem::create_directories(dir);
     const std::string log = (dir / "socat.log").string();
     const std::string left = "pty,raw,echo=0,link=" + a.string();
     const std::string right = "pty,raw,echo=0,link=" + b.string();

@@ -1,6 +1,7 @@
-// `lipdrive run` end to end on the simulated camera with real peers on its outputs: a libmodbus
-// master reads the register map over TCP while the daemon runs, a reader on a pty pair decodes
-// the framed serial protocol, and after SIGTERM the last thing on every output is neutral.
+// `lipdrive run` end to end on the simulated camera with real peers on its outputs: libmodbus
+// masters read the register map over RTU (a socat pty pair) and TCP while the daemon runs, a
+// reader on another pty pair decodes the framed serial protocol, and after SIGTERM the last
+// thing on the serial line is the neutral pose.
 #include "daemon_process.hpp"
 #include "drivers/modbus_link.hpp"
 #include "firmware_app/drive_output.hpp"
@@ -50,8 +51,9 @@ std::string stats_line(const std::string& log, const std::string& prefix) {
 TEST(DaemonOutputs, ModbusAndSerialFollowTheMouthAndEndNeutral) {
   if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
   const test::TempDir dir;
-  const test::PtyPair line(dir.path());
+  const test::PtyPair line(dir.path() / "serial");
   test::PtyReader reader(line.b);
+  const test::PtyPair rtu_line(dir.path() / "rtu");
   const int port = free_port();
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << fmt::format(R"([model]
@@ -75,15 +77,40 @@ signal = "width"
 neutral = {}
 [[outputs.modbus_server]]
 port = {}
+[[outputs.modbus_server]]
+transport = "rtu"
+device = "{}"
+unit_id = 7
 [[outputs.serial]]
 mode = "framed"
 device = "{}"
 )",
-                                       kModel.string(), kClip.string(), kWidthNeutral, port, line.a.string());
+                                       kModel.string(), kClip.string(), kWidthNeutral, port, rtu_line.a.string(),
+                                       line.a.string());
   test::DaemonProcess daemon(config, dir.path() / "stderr.txt", "--stats");
   ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
 
-  // The register map while the daemon runs.
+  // The same register map over RTU, from a master on the other end of the pty pair.
+  const ModbusContext rtu(modbus_new_rtu(rtu_line.b.c_str(), 115200, 'N', 8, 1));
+  ASSERT_EQ(modbus_connect(rtu.get()), 0) << modbus_strerror(errno);
+  modbus_set_slave(rtu.get(), 7);
+  modbus_set_response_timeout(rtu.get(), 1, 0);
+  std::vector<std::uint16_t> rtu_heartbeats, rtu_opens;
+  for (int poll = 0; poll < 40; ++poll) {
+    std::array<std::uint16_t, modbus_map::kFirstChannel + 1> input{};
+    ASSERT_EQ(modbus_read_input_registers(rtu.get(), 0, static_cast<int>(input.size()), input.data()),
+              static_cast<int>(input.size()))
+        << modbus_strerror(errno);
+    rtu_heartbeats.push_back(input[modbus_map::kHeartbeat]);
+    rtu_opens.push_back(input[modbus_map::kFirstChannel]);
+    std::this_thread::sleep_for(25ms);
+  }
+  EXPECT_GT(std::ranges::count_if(rtu_heartbeats, [&](std::uint16_t h) { return h != rtu_heartbeats.front(); }), 30)
+      << "RTU: the heartbeat increments";
+  const auto [rtu_lowest, rtu_highest] = std::ranges::minmax(rtu_opens);
+  EXPECT_GT(rtu_highest - rtu_lowest, 100) << "RTU: the open channel follows the talking mouth";
+
+  // The register map over TCP while the daemon runs.
   const ModbusContext master(modbus_new_tcp("127.0.0.1", port));
   ASSERT_TRUE(test::eventually([&] { return modbus_connect(master.get()) == 0; }, 5s)) << modbus_strerror(errno);
   modbus_set_response_timeout(master.get(), 1, 0);
