@@ -43,7 +43,8 @@ class VisemeSolver {
   /// between the neighbouring intensities (parabola through the three distances); what the
   /// fitted coefficients show beyond that pose goes to the NNLS of solve(), always below the
   /// dominant weight. Nearest to neutral: solve(fit.coefficients). `observed` is the detected
-  /// landmarks (unbiased) or fit.projected. Allocates nothing; ~161 4x4 solves and 2x3 SVDs per frame.
+  /// landmarks (unbiased) or fit.projected. Allocates nothing; one 4x4 solve per example pose
+  /// per frame (0.4 ms for the 161 poses of the default model).
   VisemeWeights solve(const FitOutput& fit, const Landmarks2D& observed, std::span<const int> landmarks) const;
 
   /// 2-norm condition number of the 16 viseme directions: how well the model's components

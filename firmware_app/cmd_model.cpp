@@ -137,7 +137,7 @@ void print_info(const fs::path& file) {
     Eigen::Index k = 0;
     while (k < fractions.size() && sum < target) sum += fractions[k++];
     if (sum >= target)
-      fmt::print("{:.0f} % of the variance: {} components\n", 100 * target, k);
+      fmt::print("{:.0f} % of the variance: {} component{}\n", 100 * target, k, k == 1 ? "" : "s");
     else
       fmt::print("{:.0f} % of the variance: not reached (all {} components hold {:.2f} %)\n", 100 * target, k,
                  100 * sum);

@@ -177,7 +177,7 @@ TEST_F(ModelCommandTest, BuildsAModelAndDescribesIt) {
   EXPECT_EQ(m.pose_names, known_set().input.pose_names);
 
   ASSERT_EQ(run("model info " + (dir_ / "out.lpm").string()), 0) << output_;
-  EXPECT_THAT(output_, AllOf(HasSubstr("components:     2"), HasSubstr("90 % of the variance: 1 components"),
+  EXPECT_THAT(output_, AllOf(HasSubstr("components:     2"), HasSubstr("90 % of the variance: 1 component\n"),
                              HasSubstr("95 % of the variance: 2 components"),
                              HasSubstr("landmarks: 1/68 mapped"), HasSubstr("unmapped:  0 1 2")));
 }
