@@ -1,6 +1,7 @@
 // The calibration round trip on a real talking face: `lipdrive calibrate` on a GRID take,
 // then the pipeline drives an open channel with that profile. The performer's mouth must use
 // the whole channel and come back to rest in the closing silence.
+#include "fixture_paths.hpp"
 #include "daemon_process.hpp"
 #include "firmware_app/model_files.hpp"
 #include "firmware_app/performer_profile.hpp"
@@ -21,7 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+using test::kModel;
 const fs::path kTake = fs::path(LIPDRIVE_SHARED_FIXTURES) / "grid" / "bbaf2n.mpg";
 constexpr std::uint64_t kFinalSilenceFrom = 54;  // bbaf2n.align: "53000 74500 sil", frames 54..74
 

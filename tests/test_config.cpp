@@ -1,5 +1,6 @@
 // The daemon's configuration file: the reference file is valid, and every kind of mistake
 // is reported with the file, the key and the reason.
+#include "fixture_paths.hpp"
 #include "firmware_app/config.hpp"
 
 #include <fmt/format.h>
@@ -22,8 +23,8 @@ namespace fs = std::filesystem;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
 
-const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+using test::kModel;
+using test::kClip;
 
 class ConfigTest : public ::testing::Test {
  protected:

@@ -2,6 +2,7 @@
 // masters read the register map over RTU (a socat pty pair) and TCP while the daemon runs, a
 // reader on another pty pair decodes the framed serial protocol, and after SIGTERM the last
 // thing on the serial line is the neutral pose.
+#include "fixture_paths.hpp"
 #include "daemon_process.hpp"
 #include "drivers/modbus_link.hpp"
 #include "firmware_app/drive_output.hpp"
@@ -25,8 +26,7 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 
-const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+using test::kClip;
 constexpr int kWidthNeutral = 500;
 
 /// A loopback TCP port nobody listens on right now.
@@ -56,14 +56,7 @@ TEST(DaemonOutputs, ModbusAndSerialFollowTheMouthAndEndNeutral) {
   const test::PtyPair rtu_line(dir.path() / "rtu");
   const int port = free_port();
   const fs::path config = dir.path() / "lipdrive.toml";
-  std::ofstream(config) << fmt::format(R"([model]
-file = "{}"
-[camera]
-input = "{}"
-real_time = true
-loop = true
-replay_fps = 60
-[status]
+  std::ofstream(config) << test::sim_camera_at_60_fps() << fmt::format(R"([status]
 print_interval_ms = 0
 [safety]
 hold_ms = 100
@@ -85,8 +78,8 @@ unit_id = 7
 mode = "framed"
 device = "{}"
 )",
-                                       kModel.string(), kClip.string(), kWidthNeutral, port, rtu_line.a.string(),
-                                       line.a.string());
+                                                                   kWidthNeutral, port, rtu_line.a.string(),
+                                                                   line.a.string());
   test::DaemonProcess daemon(config, dir.path() / "stderr.txt", "--stats");
   ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
 

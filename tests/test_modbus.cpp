@@ -1,6 +1,7 @@
 // The Modbus outputs against real peers: libmodbus masters reading and writing the register
 // map over loopback TCP and over an RTU pty pair (socat), the client output writing to a
 // libmodbus slave that goes away and comes back, and the server under garbage and load.
+#include "fixture_paths.hpp"
 #include "firmware_app/model_files.hpp"
 #include "firmware_app/modbus_output.hpp"
 #include "firmware_app/pipeline.hpp"
@@ -40,8 +41,8 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 namespace map = modbus_map;
 
-const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+using test::kModel;
+using test::kClip;
 
 const std::vector<ChannelSpec> kChannels = {
     {.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 100},

@@ -3,6 +3,7 @@
 // process (--frames/--stats, SIGTERM, SIGHUP).
 //
 // Allocations are counted by tests/allocation_counter.cpp on the processing thread alone.
+#include "fixture_paths.hpp"
 #include "firmware_app/latest_frame.hpp"
 #include "firmware_app/model_files.hpp"
 #include "firmware_app/pipeline.hpp"
@@ -39,8 +40,8 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 
-const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+using test::kModel;
+using test::kClip;
 
 // ---------------------------------------------------------------- hand-over structures
 

@@ -1,5 +1,6 @@
 // The daemon for a minute at 60 fps on the simulated camera with every fault injected: memory
 // stays flat, the systemd watchdog is fed on time throughout, and the drive keeps running.
+#include "fixture_paths.hpp"
 #include "daemon_process.hpp"
 
 #include <fmt/format.h>
@@ -18,8 +19,7 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
-const fs::path kModel = fs::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-const fs::path kClip = fs::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+using test::kClip;
 constexpr auto kSoak = 60s;
 constexpr long kWatchdogUsec = 1'000'000;
 
@@ -43,14 +43,7 @@ TEST(Soak, AMinuteAt60FpsWithFaultsLeaksNothingAndNeverMissesTheWatchdog) {
   const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_test_soak_{}", ::getpid());
   fs::create_directories(dir);
   const fs::path config = dir / "lipdrive.toml";
-  std::ofstream(config) << fmt::format(R"([model]
-file = "{}"
-[camera]
-input = "{}"
-real_time = true
-loop = true
-replay_fps = 60
-[camera.faults]
+  std::ofstream(config) << test::sim_camera_at_60_fps() << R"([camera.faults]
 drop_every = 50
 corrupt_every = 97
 stall_every = 400
@@ -62,8 +55,7 @@ print_interval_ms = 1000
 [[channels]]
 name = "open"
 signal = "open"
-)",
-                                       kModel.string(), kClip.string());
+)";
   test::NotifySocket notify(dir / "notify.sock");
   test::DaemonProcess daemon(config, dir / "stderr.txt", "--stats",
                              {notify.environment(), fmt::format("WATCHDOG_USEC={}", kWatchdogUsec)});
