@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -103,6 +104,35 @@ cv::VideoWriter open_video(const fs::path& path, double fps, cv::Size frame_size
   return video;
 }
 
+struct FixtureFrame {
+  cv::Mat image;
+  std::string truth;  // the row's truth fields, comma-separated
+};
+
+/// <out>/<name>.avi and <out>/<name>_truth.csv (frame,time_s,<truth_columns>): one video frame
+/// and one truth row per call of `frame(f)`, f = 0 .. frames - 1.
+void write_fixture(const fs::path& out, std::string_view name, double fps, cv::Size frame_size,
+                   std::string_view truth_columns, std::size_t frames,
+                   const std::function<FixtureFrame(std::size_t)>& frame) {
+  create_output_directory(out);
+  const fs::path video_path = out / fmt::format("{}.avi", name);
+  const fs::path truth_path = out / fmt::format("{}_truth.csv", name);
+  cv::VideoWriter video = open_video(video_path, fps, frame_size);
+  try {
+    auto truth = fmt::output_file(truth_path.string());
+    truth.print("frame,time_s,{}\n", truth_columns);
+    for (std::size_t f = 0; f < frames; ++f) {
+      const FixtureFrame next = frame(f);
+      video.write(next.image);
+      truth.print("{},{:.6f},{}\n", f, static_cast<double>(f) / fps, next.truth);
+    }
+  } catch (const std::system_error& e) {
+    throw CommandError(fmt::format("{}: cannot write: {}", truth_path.string(), e.code().message()));
+  }
+  video.release();
+  spdlog::info("wrote {} frames to {} and {}", frames, video_path.string(), truth_path.string());
+}
+
 void write_talking_face(const TalkingFaceArgs& args) {
   const cv::Mat portrait = read_portrait(args.portrait);
   const Landmarks2D landmarks = detect_landmarks(portrait, args.portrait, args.predictor);
@@ -110,23 +140,11 @@ void write_talking_face(const TalkingFaceArgs& args) {
   const TalkingFace face(portrait, landmarks, options);
   const auto poses = scripted_trajectory(args.fps);
 
-  create_output_directory(args.out);
-  const fs::path video_path = args.out / "talking_face.avi";
-  const fs::path truth_path = args.out / "talking_face_truth.csv";
-  cv::VideoWriter video = open_video(video_path, args.fps, options.frame_size);
-  try {
-    auto truth = fmt::output_file(truth_path.string());
-    truth.print("frame,time_s,width_2d,height_2d\n");
-    for (std::size_t f = 0; f < poses.size(); ++f) {
-      const TalkingFaceFrame frame = face.frame(poses[f]);
-      video.write(frame.image);
-      truth.print("{},{:.6f},{:.6f},{:.6f}\n", f, f / args.fps, frame.truth.width, frame.truth.height);
-    }
-  } catch (const std::system_error& e) {
-    throw CommandError(fmt::format("{}: cannot write: {}", truth_path.string(), e.code().message()));
-  }
-  video.release();
-  spdlog::info("wrote {} frames to {} and {}", poses.size(), video_path.string(), truth_path.string());
+  write_fixture(args.out, "talking_face", args.fps, options.frame_size, "width_2d,height_2d", poses.size(),
+                [&](std::size_t f) {
+                  const TalkingFaceFrame frame = face.frame(poses[f]);
+                  return FixtureFrame{frame.image, fmt::format("{:.6f},{:.6f}", frame.truth.width, frame.truth.height)};
+                });
 }
 
 struct SideViewArgs {
@@ -140,23 +158,12 @@ void write_side_view(const SideViewArgs& args) {
   const ImageProjection projection = side_projection(head, options);
   const auto blends = side_view_trajectory(head, args.fps);
 
-  create_output_directory(args.out);
-  const fs::path video_path = args.out / "side_view.avi";
-  const fs::path truth_path = args.out / "side_view_truth.csv";
-  cv::VideoWriter video = open_video(video_path, args.fps, options.frame_size);
-  try {
-    auto truth = fmt::output_file(truth_path.string());
-    truth.print("frame,time_s,protrusion_truth\n");
-    for (std::size_t f = 0; f < blends.size(); ++f) {
-      const Eigen::Matrix3Xf vertices = blend_vertices(head, blends[f]);
-      video.write(render_side_view(head, vertices, options.frame_size, projection));
-      truth.print("{},{:.6f},{:.6f}\n", f, f / args.fps, upper_lip_protrusion(head, vertices));
-    }
-  } catch (const std::system_error& e) {
-    throw CommandError(fmt::format("{}: cannot write: {}", truth_path.string(), e.code().message()));
-  }
-  video.release();
-  spdlog::info("wrote {} frames to {} and {}", blends.size(), video_path.string(), truth_path.string());
+  write_fixture(args.out, "side_view", args.fps, options.frame_size, "protrusion_truth", blends.size(),
+                [&](std::size_t f) {
+                  const Eigen::Matrix3Xf vertices = blend_vertices(head, blends[f]);
+                  return FixtureFrame{render_side_view(head, vertices, options.frame_size, projection),
+                                      fmt::format("{:.6f}", upper_lip_protrusion(head, vertices))};
+                });
 }
 
 }  // namespace
