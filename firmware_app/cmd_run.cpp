@@ -124,8 +124,9 @@ class StatusReporter {
     last_processed_ = s.processed;
     FrameResult latest;
     pipeline.latest(latest);
+    // While the camera is away the latest result is the last frame before it left.
     const std::string mouth =
-        latest.tracked
+        latest.tracked && s.connected
             ? fmt::format("mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f} ({}), drive open {:.2f} width {:.2f} "
                           "protrusion {:.2f}",
                           latest.measures.height_fit, latest.measures.width_fit,

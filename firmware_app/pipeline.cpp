@@ -83,7 +83,7 @@ void Pipeline::capture_loop() {
         // Logged once per outage; the source keeps trying to reopen by itself.
         if (connected_.exchange(false)) {
           disconnects_.fetch_add(1, std::memory_order_relaxed);
-          spdlog::warn("{}: disconnected; outputs get untracked results until it is back", source_description_);
+          spdlog::warn("{}: disconnected; the drive holds, then eases to neutral until it is back", source_description_);
         }
         break;
       case GrabStatus::kCorrupt:
@@ -107,12 +107,6 @@ void Pipeline::processing_loop() {
       process(*frame);
     } else if (source_ended_ || failed_) {
       finished_.store(true, std::memory_order_release);
-    } else if (!connected_) {
-      // No frames while the camera is away: outputs must learn that nothing is tracked.
-      // (Not a frame, so not for the sinks, which record frames.)
-      FrameResult untracked;
-      untracked.capture_time_ns = untracked.processed_time_ns = monotonic_ns();
-      results_.publish(untracked);
     }
     ping_watchdog(monotonic_ns());
   }
