@@ -453,16 +453,24 @@ NeutralHead build_neutral_head() {
 // ---------------------------------------------------------------------------------
 // Articulation.
 
-/// One viseme at full intensity; intensity p scales every parameter by p.
+/// One viseme at full intensity; intensity p scales every parameter by p. Each viseme
+/// gets its own mix of these articulators, so no viseme is (nearly) a scaled copy of
+/// another: a character's mouth shapes must stay tellable apart at every intensity from
+/// the landmarks a front camera sees. Only the lower lip rolls: with an upper-lip roll
+/// the fit explained a performer's thinner upper lip by rolling it in and opening the
+/// jaw, so real closed lips read as parted (GRID bbaf2n: scaled height on "bin" 0.28
+/// instead of 0.16).
 struct Articulation {
   float jaw_degrees = 0;   // mandible rotation about the TMJ (opens the mouth)
   float rounding = 0;      // fraction by which the lips narrow towards the midline
   float protrusion = 0;    // mm the lips move forward
-  float spread = 0;        // mm each corner moves outward
-  float upper_raise = 0;   // mm the upper lip rises
-  float lower_drop = 0;    // mm the lower lip drops (beyond the jaw)
+  float spread = 0;        // mm each corner moves outward (the risorius: the corners most)
+  float corner_raise = 0;  // mm the corners rise (smile; negative: they sink)
+  float upper_raise = 0;   // mm the whole upper lip rises
+  float lower_drop = 0;    // mm the whole lower lip drops (beyond the jaw)
+  float lower_square = 0;  // mm the lower lip drops beside the midline
+  float lower_roll = 0;    // fraction of the lower vermilion rolled in (negative: turned out)
   float lower_tuck = 0;    // mm the lower lip moves back and up under the upper teeth
-  float press = 0;         // 0..1: lips pressed together and rolled in
 };
 
 Articulation articulation(std::string_view viseme) {
@@ -470,16 +478,25 @@ Articulation articulation(std::string_view viseme) {
     std::string_view name;
     Articulation a;
   };
-  // jaw°, rounding, protrusion, spread, upper raise, lower drop, tuck, press
+  // jaw°, rounding, protrusion, spread, corner raise, upper raise, lower drop,
+  // lower square, lower roll, lower tuck
   static const Entry kTable[] = {
-      {"Aah", {11, 0, 0, 2, 1, 0, 0, 0}},       {"BigAah", {17, 0, 0, 3, 2, 1, 0, 0}},
-      {"B-M-P", {0, 0, 0.5f, 0, 0, 0, 0, 1}},   {"Ch-J-Sh", {3, 0.2f, 5, 0, 2, 2, 0, 0}},
-      {"D-S-T", {4, 0, 0, 2.5f, 1, 0.5f, 0, 0}}, {"Eee", {3, 0, 0, 6, 1, 0.5f, 0, 0}},
-      {"Eh", {7, 0, 0, 3, 1, 0, 0, 0}},         {"F-V", {1, 0, 0, 0.5f, 1.5f, 0, 5, 0}},
-      {"i", {4, 0, 0, 5, 0.5f, 0, 0, 0}},       {"K", {6, 0, 0, 1.5f, 0.5f, 0, 0, 0}},
-      {"N", {4, 0, 0, 1, 0.5f, 0, 0, 0}},       {"Oh", {9, 0.3f, 5, 0, 0, 0, 0, 0}},
-      {"Ooh-Q", {4, 0.42f, 7, 0, 0.5f, 0, 0, 0}}, {"R", {4, 0.25f, 4, 0, 1, 0, 0, 0}},
-      {"Th", {5, 0, 0, 1, 0.5f, 0, 0, 0}},      {"W", {3, 0.48f, 8, 0, 0.5f, 0, 0, 0}},
+      {"Aah", {12, 0.06f, 0, 0, 0, 1, 0, 0, 0, 0}},
+      {"BigAah", {17, 0, 0, 3.5f, 0, 2, 0, 0, 0, 0}},
+      {"B-M-P", {0, 0, 0.5f, 0, 0, 0, 0, 0, 0.9f, 0}},
+      {"Ch-J-Sh", {3, 0.2f, 6, 0, 0, 2, 0, 3, -0.4f, 0}},
+      {"D-S-T", {2, 0, 0, 4, 0, 3, 2.5f, 0, 0, 0}},
+      {"Eee", {2, 0, 0, 7, 4, 1, 1, 0, 0, 0}},
+      {"Eh", {9, 0, 0, 3, 0, 1, 0, 0, 0, 0}},
+      {"F-V", {1.5f, 0, 0, 0, 0, 2.5f, 0, 0, 0.9f, 5}},
+      {"i", {5, 0, 0, 5, 0, 2, 1.5f, 0, 0, 0}},
+      {"K", {7, 0, 0, 1, -2.5f, 0, 0, 2.5f, 0, 0}},
+      {"N", {3, 0, 1, 2, 2.5f, 0, 0, 0, 0, 0}},
+      {"Oh", {11, 0.3f, 5, 0, 0, 0, 0, 0, -0.3f, 0}},
+      {"Ooh-Q", {4, 0.42f, 7, 0, 0, 0, 0, 0, -0.4f, 0}},
+      {"R", {3, 0.25f, 4, 0, -1.5f, 3, 0, 0, 0, 0}},
+      {"Th", {4, 0, 0, 0, 0, 0.5f, 3.5f, 0, -0.6f, 0}},
+      {"W", {2, 0.5f, 8, 0, 0, 0, 0, 0, 0.2f, 0}},
   };
   for (const auto& e : kTable)
     if (e.name == viseme) return e.a;
@@ -487,8 +504,8 @@ Articulation articulation(std::string_view viseme) {
 }
 
 Articulation scaled(const Articulation& a, float p) {
-  return {a.jaw_degrees * p, a.rounding * p, a.protrusion * p, a.spread * p,
-          a.upper_raise * p, a.lower_drop * p, a.lower_tuck * p, a.press * p};
+  return {a.jaw_degrees * p, a.rounding * p,   a.protrusion * p,   a.spread * p,     a.corner_raise * p,
+          a.upper_raise * p, a.lower_drop * p, a.lower_square * p, a.lower_roll * p, a.lower_tuck * p};
 }
 
 /// The lips first (in the neutral frame), then the mandible carries the lower lip:
@@ -497,12 +514,19 @@ Eigen::Vector3f articulate(const Eigen::Vector3f& p, const VertexWeights& w, con
   Eigen::Vector3f q = p;
   const float u = std::clamp(p.x() / kMouthHalfWidth, -1.0f, 1.0f);
   const float upper = w.lip * (1 - w.lower_lip), lower = w.lip * w.lower_lip;
-  const float vermilion = std::exp(-std::pow((p.y() - kStomionY) / 8, 2.0f));
-  q.x() += w.perioral * (-a.rounding * p.x() + a.spread * u);
-  q.y() += w.perioral * 0.25f * a.spread * u * u + a.upper_raise * upper - a.lower_drop * lower +
-           0.2f * a.lower_tuck * lower - 0.35f * a.press * (p.y() - kStomionY) * w.lip * vermilion;
+  const float from_stomion = p.y() - kStomionY;
+  // The lower vermilion (and a little skin below it) rolls about the line where the lips
+  // meet, which stays put: a roll moves the lip border, not the inner lip line.
+  const float roll = a.lower_roll * lower * std::exp(-std::pow(from_stomion / 12, 4.0f));
+  const float off_contact = 1 - std::exp(-std::pow(from_stomion / 4, 2.0f));
+  const float beside_midline = 4 * u * u * (1 - u * u);  // 0 at the midline and the corners, 1 between
+  q.x() += w.perioral * (-a.rounding * p.x() + a.spread * u * std::abs(u));
+  q.y() += w.perioral * (0.25f * a.spread + a.corner_raise * u * u) * u * u +
+           a.upper_raise * upper -
+           (a.lower_drop + a.lower_square * beside_midline) * lower + 0.2f * a.lower_tuck * lower -
+           roll * from_stomion;
   q.z() += w.perioral * (a.protrusion * (1 - 0.4f * u * u) - 0.5f * a.spread * u * u) -
-           a.lower_tuck * lower * (1 - 0.5f * u * u) - 2.0f * a.press * w.lip * vermilion;
+           a.lower_tuck * lower * (1 - 0.5f * u * u) - 3 * roll * off_contact;
 
   const float angle = w.jaw * a.jaw_degrees * std::numbers::pi_v<float> / 180;
   const Eigen::Vector3f hinge{q.x(), kHingeY, kHingeZ};

@@ -312,9 +312,7 @@ TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
                " (misses " + o.misses() + "). ";
     if (span == kRigEyeSpanPx) rig = b;
   }
-  if (rig.rate() < 0.9)
-    GTEST_SKIP() << "acceptance (>= 90 %) not met: " << figures << "Pose-match confusions at the rig scale: " << rig.confusions;
-  EXPECT_GE(rig.rate(), 0.9) << figures;
+  EXPECT_GE(rig.rate(), 0.9) << figures << "Pose-match confusions at the rig scale: " << rig.confusions;
 }
 
 TEST(VisemeSolver, PoseMatchAllocatesNothingAndGivesWeightsInRange) {
