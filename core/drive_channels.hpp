@@ -26,7 +26,7 @@ struct ChannelSpec {
   double max_slew_per_s = 0;       // output units per second; 0 = unlimited
   bool invert = false;             // in_min maps to out_max
   bool smoothed = false;           // 1€-filter the signal (frame timestamps) before mapping
-  OneEuroSettings smoothing;
+  OneEuroSettings smoothing{};
 };
 
 struct SafetySettings {

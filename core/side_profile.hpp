@@ -29,7 +29,7 @@ struct SideProfileSettings {
   /// up to the brow (the nose root is the deepest point below the outline above it) and
   /// down past the mouth, and the face must not reach the crop's edge in front of it: that
   /// column tells the background.
-  cv::Rect crop;
+  cv::Rect crop{};
   /// Smallest difference in grey levels between the means of Otsu's two classes; below it
   /// the crop holds no silhouette (a blank or covered camera).
   double min_contrast = 20;

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cerrno>
+#include <cmath>
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
@@ -237,7 +238,7 @@ class Session {
     completed_.reserve(requests_.size());
   }
 
-  void start(int frame_rate) {
+  void start(double frame_rate) {
     camera_->requestCompleted.connect(this, &Session::on_request_completed);
     camera_->disconnected.connect(this, &Session::on_disconnected);
     connected_ = true;
@@ -245,7 +246,7 @@ class Session {
     libcamera::ControlList controls(libcamera::controls::controls);
     if (frame_rate > 0) {
       if (camera_->controls().count(&libcamera::controls::FrameDurationLimits)) {
-        const std::int64_t frame_us = 1'000'000 / frame_rate;
+        const std::int64_t frame_us = std::llround(1e6 / frame_rate);
         const std::array<std::int64_t, 2> limits{frame_us, frame_us};
         // libcamera API: a Span is accepted by every version for array controls.
         controls.set(libcamera::controls::FrameDurationLimits,

@@ -37,7 +37,7 @@ struct LibcameraOptions {
   std::string camera_id;  // as `cam --list` shows it; "" = the first camera
   unsigned width = 0;     // 0 keeps the camera's default size for the viewfinder role
   unsigned height = 0;
-  int frame_rate = 0;  // frames per second; 0 keeps the camera's default
+  double frame_rate = 0;  // frames per second; 0 keeps the camera's default
 };
 
 class LibcameraCamera final : public FrameSource {

@@ -65,7 +65,7 @@ PerformerProfile load_profile(const fs::path& file) {
                                     {"protrusion", profile.protrusion}}) {
     if (range.min == range.max) malformed(file, fmt::format("{}.max", name), "must differ from min");
   }
-  if (const toml::table* indices = root["indices"].as_table()) {
+  if (root["indices"].as_table()) {
     std::array<double, kNumFacialIndices> values{};
     for (int i = 0; i < kNumFacialIndices; ++i)
       values[i] = read_number(root, file, "indices", kFacialIndices[static_cast<std::size_t>(i)].name);

@@ -85,12 +85,14 @@ TEST_F(ProcessTest, GeneratedTalkingFaceFollowsItsTruth) {
   const auto truth_width = numeric_column(truth, "width_2d"), truth_height = numeric_column(truth, "height_2d");
   for (const char* column : {"height_2d", "height_fit"}) {
     const SeriesAgreement a = compare_series(truth_height, numeric_column(output, column));
+    RecordProperty(std::string(column) + "_rmse_scaled_r", fmt::format("{:.3f} {:.3f}", a.rmse_scaled, a.pearson_r));
     EXPECT_EQ(a.pairs_used, static_cast<int>(truth.rows.size())) << column << ": untracked frames";
     EXPECT_LE(a.rmse_scaled, 0.08) << column;
     EXPECT_GE(a.pearson_r, 0.9) << column;
   }
   for (const char* column : {"width_2d", "width_fit"}) {
     const SeriesAgreement a = compare_series(truth_width, numeric_column(output, column));
+    RecordProperty(std::string(column) + "_rmse_scaled_r", fmt::format("{:.3f} {:.3f}", a.rmse_scaled, a.pearson_r));
     EXPECT_LE(a.rmse_scaled, 0.10) << column;
   }
 }
@@ -134,10 +136,12 @@ TEST_F(ProcessTest, GridSpeechClosesTheLipsOnBilabials) {
   const auto min_over = [&](int first, int last) {
     return *std::min_element(height.begin() + first, height.begin() + last + 1);
   };
+  RecordProperty("scaled_height_fit_min_bin_blue", fmt::format("{:.3f} {:.3f}", min_over(23, 29), min_over(29, 34)));
   EXPECT_LE(min_over(23, 29), 0.2) << "lips do not close on 'bin'";
   EXPECT_LE(min_over(29, 34), 0.2) << "lips do not close on 'blue'";
   double silence = 0;
   for (int f = 56; f <= 74; ++f) silence += height[f];
+  RecordProperty("scaled_height_fit_final_silence_mean", fmt::format("{:.3f}", silence / 19));
   EXPECT_LE(silence / 19, 0.15) << "mouth not closed in the final silence";
 }
 

@@ -132,7 +132,9 @@ TEST_P(DefaultModels, FullPosesAreReproducedAndTheirSeparationIsReported) {
   RecordProperty("components", model.num_components());
   RecordProperty("viseme_singular_values_mm", singular_list);
   RecordProperty("condition_number", std::to_string(solver.condition_number()));
-  if (singular.size() == kNumVisemes) EXPECT_NEAR(solver.condition_number() / (singular(0) / singular(kNumVisemes - 1)), 1.0, 1e-3);
+  if (singular.size() == kNumVisemes) {
+    EXPECT_NEAR(solver.condition_number() / (singular(0) / singular(kNumVisemes - 1)), 1.0, 1e-3);
+  }
   int one_hot = 0;
   for (int v = 0; v < kNumVisemes; ++v) {
     SCOPED_TRACE(kVisemeNames[v]);
