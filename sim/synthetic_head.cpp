@@ -260,7 +260,7 @@ float perioral_region(float x, float y) {
 
 struct VertexWeights {
   float jaw;        // follows the mandible
-  float lip;        // follows the lip alone (raise, drop, tuck, press)
+  float lip;        // follows the lip alone (raise, drop, roll, tuck)
   float perioral;   // follows rounding, spread and protrusion
   float lower_lip;  // 0 = upper lip, 1 = lower lip (within the lip region)
 };
@@ -521,10 +521,8 @@ Eigen::Vector3f articulate(const Eigen::Vector3f& p, const VertexWeights& w, con
   const float off_contact = 1 - std::exp(-std::pow(from_stomion / 4, 2.0f));
   const float beside_midline = 4 * u * u * (1 - u * u);  // 0 at the midline and the corners, 1 between
   q.x() += w.perioral * (-a.rounding * p.x() + a.spread * u * std::abs(u));
-  q.y() += w.perioral * (0.25f * a.spread + a.corner_raise * u * u) * u * u +
-           a.upper_raise * upper -
-           (a.lower_drop + a.lower_square * beside_midline) * lower + 0.2f * a.lower_tuck * lower -
-           roll * from_stomion;
+  q.y() += w.perioral * (0.25f * a.spread + a.corner_raise * u * u) * u * u + a.upper_raise * upper -
+           (a.lower_drop + a.lower_square * beside_midline - 0.2f * a.lower_tuck) * lower - roll * from_stomion;
   q.z() += w.perioral * (a.protrusion * (1 - 0.4f * u * u) - 0.5f * a.spread * u * u) -
            a.lower_tuck * lower * (1 - 0.5f * u * u) - 3 * roll * off_contact;
 
