@@ -1,5 +1,7 @@
 #include "core/calibration.hpp"
 
+#include "core/statistics.hpp"
+
 #include <algorithm>
 #include <string>
 #include <vector>
@@ -21,14 +23,12 @@ void CalibrationCapture::add(const MouthMeasures& measures) {
 
 namespace {
 
-/// Nearest-rank quantile of one measure over the samples.
+/// The p-quantile (core/statistics.hpp) of one measure over the samples.
 double quantile(std::span<const CalibrationSample> samples, double CalibrationSample::*measure, double p) {
   std::vector<double> values;
   values.reserve(samples.size());
   for (const CalibrationSample& s : samples) values.push_back(s.*measure);
-  const auto rank = static_cast<std::size_t>(p * static_cast<double>(values.size() - 1) + 0.5);
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(rank), values.end());
-  return values[rank];
+  return lipdrive::quantile(values, p);
 }
 
 CalibrationSample median(std::span<const CalibrationSample> neutral) {

@@ -1,4 +1,4 @@
-// Performer calibration (DESIGN.md 4.4 "Scaled", 2 "Calibration"): per-measure ranges that map
+// Performer calibration (docs/method.md 4, "Calibration"): per-measure ranges that map
 // this performer's mouth onto drive signals in [0, 1].
 #pragma once
 
@@ -37,7 +37,7 @@ struct PerformerProfile {
   MeasureRange protrusion_side{0.0, 0.12};  // the side camera's, over the nose length (rest = 0)
   CalibrationSample rest{0.03, 1.3, 0.0};  // the neutral capture's median
   bool calibrated = false;              // measured on this performer (else the defaults)
-  /// DESIGN.md 4.6 indices of the performer's neutral face, when the calibration saw one.
+  /// docs/method.md 6 indices of the performer's neutral face, when the calibration saw one.
   std::optional<std::array<double, kNumFacialIndices>> face_indices;
 };
 
@@ -67,9 +67,10 @@ inline constexpr int kMinNeutralFrames = 10;
 
 /// A profile from a neutral capture (the performer at rest) and a range-of-motion capture
 /// (open / wide / round / closed). Robust statistics so that a few mistracked frames do not
-/// move the ends: rest = median of the neutral frames; open and protrusion run from rest to
-/// the 98th percentile of the motion, width from its 2nd to its 98th percentile (rounding
-/// narrows the mouth below rest). Throws CalibrationError naming the measure at fault.
+/// move the ends (quantiles by the rank rule of core/statistics.hpp): rest = median of the
+/// neutral frames; open and protrusion run from rest to the 98th percentile of the motion,
+/// width from its 2nd to its 98th percentile (rounding narrows the mouth below rest). Throws
+/// CalibrationError naming the measure at fault.
 PerformerProfile calibrate(std::span<const CalibrationSample> neutral, std::span<const CalibrationSample> motion);
 
 /// Re-centring on a new neutral capture: each range keeps its span and moves with the rest

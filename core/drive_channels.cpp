@@ -6,6 +6,12 @@
 
 namespace lipdrive {
 
+std::optional<int> find_channel(std::span<const ChannelSpec> channels, std::string_view name) {
+  const auto found = std::ranges::find(channels, name, &ChannelSpec::name);
+  if (found == channels.end()) return std::nullopt;
+  return static_cast<int>(found - channels.begin());
+}
+
 double map_to_output(const ChannelSpec& spec, double signal_value) {
   double t = std::clamp((signal_value - spec.in_min) / (spec.in_max - spec.in_min), 0.0, 1.0);
   if (spec.invert) t = 1 - t;

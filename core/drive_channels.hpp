@@ -1,4 +1,4 @@
-// Drive channels and the safety layer (DESIGN.md 5): each channel follows one signal, maps
+// Drive channels and the safety layer (docs/data-flow.md): each channel follows one signal, maps
 // its input range to the output's units, and is clamped, slew-rate limited and eased to
 // its neutral value when tracking is lost. Pure computation on fixed-size state: step()
 // allocates nothing and does a fixed amount of work per channel.
@@ -10,8 +10,10 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 
 namespace lipdrive {
 
@@ -28,6 +30,10 @@ struct ChannelSpec {
   bool smoothed = false;           // 1€-filter the signal (frame timestamps) before mapping
   OneEuroSettings smoothing{};
 };
+
+/// The index of the channel named `name` among `channels`, or nullopt: the one lookup by name
+/// (the configuration's checks, the outputs that pick channels by name).
+std::optional<int> find_channel(std::span<const ChannelSpec> channels, std::string_view name);
 
 struct SafetySettings {
   std::int64_t hold_ns = 250'000'000;  // keep the last tracked values this long after a loss
@@ -69,14 +75,11 @@ class ChannelBank {
   void set_override(int index, double value) { override_[static_cast<std::size_t>(index)] = value; }
 
   std::span<const double> values() const { return {values_.data(), static_cast<std::size_t>(count_)}; }
-  std::span<const double> neutral_values() const { return {neutral_.data(), static_cast<std::size_t>(count_)}; }
   /// The neutral values, as the last thing the drive sends when the daemon stops.
   void reset_to_neutral();
   /// Tracking is lost (past hold_ns) or outputs are disabled: values are easing to neutral.
   bool fail_safe_active() const { return fail_safe_; }
-  double live_gain() const { return gain_; }
   int size() const { return count_; }
-  const ChannelSpec& spec(int index) const { return specs_[static_cast<std::size_t>(index)]; }
 
  private:
   std::array<ChannelSpec, kMaxChannels> specs_;

@@ -1,4 +1,4 @@
-// The values that leave the measuring part of the pipeline for the drive side (DESIGN.md 5):
+// The values that leave the measuring part of the pipeline for the drive side (docs/data-flow.md):
 // one float per signal, in [0, 1] once calibrated, on fixed-size storage.
 #pragma once
 
@@ -8,7 +8,7 @@
 
 namespace lipdrive {
 
-// The 16 visemes of DESIGN.md 4.2, in this order (the order of the viseme signals too).
+// The 16 visemes of docs/method.md 2, in this order (the order of the viseme signals too).
 inline constexpr std::array<std::string_view, 16> kVisemeNames{
     "Aah", "BigAah", "B-M-P", "Ch-J-Sh", "D-S-T", "Eee", "Eh", "F-V",
     "i",   "K",      "N",     "Oh",      "Ooh-Q", "R",   "Th",  "W"};

@@ -1,4 +1,4 @@
-// FaceTracker: 68 iBUG landmarks per frame from a head-mounted camera (DESIGN.md 2).
+// FaceTracker: 68 iBUG landmarks per frame from a head-mounted camera (docs/data-flow.md).
 //
 // dlib's HOG frontal face detector runs only to acquire a face (first frame, or after the
 // track was lost): it costs tens of milliseconds and allocates. While tracking, the box
@@ -62,8 +62,6 @@ class FaceTracker {
   bool check_fit(const Landmarks2D& landmarks, double reprojection_error_px);
 
   bool tracking() const { return tracking_; }
-  /// The box the next tracked frame will use (derived from the last landmarks).
-  const FaceBox& box() const { return box_; }
 
  private:
   struct Detector;  // dlib's frontal_face_detector, kept out of this header
@@ -73,7 +71,7 @@ class FaceTracker {
   TrackerSettings settings_;
   ShapePredictor predictor_;
   std::unique_ptr<Detector> detector_;
-  FaceBox box_;
+  FaceBox box_;  // where the next tracked frame looks: derived from the last landmarks
   bool tracking_ = false;
 };
 

@@ -1,4 +1,4 @@
-// Facial indices of a neutral face (DESIGN.md 4.6): 13 anthropometric distances and 12
+// Facial indices of a neutral face (docs/method.md 6): 13 anthropometric distances and 12
 // indices (smaller distance / larger distance × 100, after Farkas' craniofacial norms), and
 // the performer ↔ model compatibility check built on the two mouth indices.
 //
@@ -66,8 +66,8 @@ inline constexpr std::array<FacialIndexDefinition, kNumFacialIndices> kFacialInd
     {"nasal", 5, 3},                   // al-al / n-sn
     {"intercanthal", 7, 6},            // en-en / ex-ex
     {"eye_fissure", 8, 6},             // ex-en / ex-ex
-    {"mouth_width", 9, 6},             // ch-ch / ex-ex (DESIGN.md 4.6)
-    {"vertical_mouth_height", 10, 0},  // ls-li / n-gn (DESIGN.md 4.6)
+    {"mouth_width", 9, 6},             // ch-ch / ex-ex (docs/method.md 6)
+    {"vertical_mouth_height", 10, 0},  // ls-li / n-gn (docs/method.md 6)
     {"nose_mouth_width", 5, 9},        // al-al / ch-ch
     {"upper_lip_lower_face", 11, 4},   // sn-ls / sn-gn
     {"chin_lower_face", 12, 4},        // li-gn / sn-gn
@@ -80,7 +80,7 @@ struct FacialMeasures {
   std::array<double, kNumFacialIndices> indices{};      // dimensionless × 100
 };
 
-/// DESIGN.md 4.6 on the 68 landmarks of a frontal, neutral face.
+/// docs/method.md 6 on the 68 landmarks of a frontal, neutral face.
 FacialMeasures facial_measures(const Landmarks2D& landmarks);
 
 /// The model's neutral landmarks (pose "neutral", else the mean) seen from the front: model
@@ -95,12 +95,12 @@ std::string_view index_class_name(IndexClass c);  // "low", "middle", "high"
 struct ClassThresholds {
   double low_below, high_above;
 };
-inline constexpr ClassThresholds kVerticalMouthHeightClasses{13.58, 16.22};  // DESIGN.md 4.6
-inline constexpr ClassThresholds kMouthWidthClasses{49.18, 54.80};           // DESIGN.md 4.6
+inline constexpr ClassThresholds kVerticalMouthHeightClasses{13.58, 16.22};  // docs/method.md 6
+inline constexpr ClassThresholds kMouthWidthClasses{49.18, 54.80};           // docs/method.md 6
 
 IndexClass classify(double index, ClassThresholds thresholds);
 
-/// The classes DESIGN.md 4.6 documents ranges for (the other indices have none).
+/// The classes docs/method.md 6 documents ranges for (the other indices have none).
 struct MouthClasses {
   IndexClass vertical_mouth_height, mouth_width;
 };
@@ -109,7 +109,7 @@ MouthClasses mouth_classes(const FacialMeasures& measures);
 struct Compatibility {
   MouthClasses performer, model;
   /// Vertical mouth height two classes apart (low performer on a high head, or the
-  /// reverse): DESIGN.md 4.6 reports clearly worse lips then.
+  /// reverse): docs/method.md 6 reports clearly worse lips then.
   bool warn = false;
 };
 Compatibility compatibility(const FacialMeasures& performer, const FacialMeasures& model);

@@ -10,7 +10,7 @@
 #include <stdexcept>
 #include <string>
 
-// Both least-squares problems of DESIGN.md 4.3 are solved through their normal equations,
+// Both least-squares problems of docs/method.md 3 are solved through their normal equations,
 // and those only need sums over the landmarks (moments). The sums that involve the model
 // are quadratic in alpha with coefficients that do not change per frame, so they are
 // precomputed; the sums that involve the detected landmarks are formed once per frame.
@@ -95,7 +95,7 @@ ImageMoments<K> image_moments(const Mat<3 * L, K>& basis, const Mat<L, 3>& centr
   return moments;
 }
 
-/// Expands sum_i X_i X_i^T and sum_i X_i y'_i^T for X_i = m_i + V̂_i alpha (DESIGN.md 4.2):
+/// Expands sum_i X_i X_i^T and sum_i X_i y'_i^T for X_i = m_i + V̂_i alpha (docs/method.md 2):
 /// constant, linear and quadratic terms in alpha, all from precomputed moments.
 template <int L, int K>
 ShapeMoments shape_moments(const ModelMoments<K>& model, const ImageMoments<K>& image, const Mat<K, 1>& alpha) {
@@ -323,8 +323,7 @@ void check_fit_inputs(const MorphableModel& model, LandmarkSet set, const FitSet
 }  // namespace
 
 Fitter::Fitter(const MorphableModel& model, LandmarkSet set, FitSettings settings)
-    : set_(set),
-      num_components_(std::min(model.num_components(), kMaxFitComponents)),
+    : num_components_(std::min(model.num_components(), kMaxFitComponents)),
       truncated_(model.num_components() > kMaxFitComponents) {
   check_fit_inputs(model, set, settings);
   // Two compiled sizes keep the code small; unused components of the larger size have zero

@@ -1,4 +1,4 @@
-// The per-frame fitter (DESIGN.md 4.3): an affine camera by the Gold Standard
+// The per-frame fitter (docs/method.md 3): an affine camera by the Gold Standard
 // algorithm and a regularised linear shape fit, alternated a fixed number of times.
 // All per-frame arithmetic runs on compile-time sized Eigen matrices, so a fit
 // allocates nothing and costs the same every frame.
@@ -53,13 +53,11 @@ class Fitter {
   static FitOutput initial_output();
 
   int num_components() const { return num_components_; }
-  LandmarkSet landmark_set() const { return set_; }
   /// True when the model has more than kMaxFitComponents components and the rest are ignored.
   bool truncated_components() const { return truncated_; }
 
  private:
   std::unique_ptr<FitterBase> impl_;  // virtual dispatch to FixedSizeFitter<L, K>
-  LandmarkSet set_;
   int num_components_;
   bool truncated_;
 };

@@ -3,7 +3,7 @@
 namespace lipdrive {
 namespace {
 
-// Each set adds one region to the previous one (DESIGN.md 4.1).
+// Each set adds one region to the previous one (docs/method.md 1).
 constexpr std::array<int, kNumLandmarks> make_order() {
   std::array<int, kNumLandmarks> order{};
   int n = 0;
@@ -45,17 +45,11 @@ std::span<const int> landmark_indices(LandmarkSet set) {
 }
 
 std::optional<LandmarkSet> parse_landmark_set(std::string_view name) {
-  if (name == "F1") return LandmarkSet::F1;
-  if (name == "F2") return LandmarkSet::F2;
-  if (name == "F3") return LandmarkSet::F3;
-  if (name == "F4") return LandmarkSet::F4;
-  if (name == "F5") return LandmarkSet::F5;
+  for (std::size_t i = 0; i < kLandmarkSetNames.size(); ++i)
+    if (kLandmarkSetNames[i] == name) return static_cast<LandmarkSet>(i);
   return std::nullopt;
 }
 
-std::string_view landmark_set_name(LandmarkSet set) {
-  constexpr std::array<std::string_view, 5> names{"F1", "F2", "F3", "F4", "F5"};
-  return names[static_cast<int>(set)];
-}
+std::string_view landmark_set_name(LandmarkSet set) { return kLandmarkSetNames[static_cast<std::size_t>(set)]; }
 
 }  // namespace lipdrive

@@ -1,5 +1,5 @@
 // iBUG 68-point landmark indices (0-based, as dlib returns them) and the
-// landmark sets F1..F5 used for fitting (DESIGN.md 4.1).
+// landmark sets F1..F5 used for fitting (docs/method.md 1).
 #pragma once
 
 #include <Eigen/Core>
@@ -33,6 +33,8 @@ inline constexpr int kChin = 8;  // gnathion
 
 enum class LandmarkSet { F1, F2, F3, F4, F5 };
 inline constexpr LandmarkSet kDefaultLandmarkSet = LandmarkSet::F4;
+/// The sets' names, in LandmarkSet order: what configuration files and the CLI accept.
+inline constexpr std::array<std::string_view, 5> kLandmarkSetNames{"F1", "F2", "F3", "F4", "F5"};
 
 /// Number of landmarks in a set: F1 lips (20), F2 +nose (29), F3 +eyes (41),
 /// F4 +brows (51), F5 +jaw contour (68).

@@ -1,4 +1,4 @@
-// Agreement between a ground-truth series and an output series (DESIGN.md 4.5).
+// Agreement between a ground-truth series and an output series (docs/method.md 5).
 #pragma once
 
 #include <span>

@@ -1,4 +1,4 @@
-// Builds a morphable model from example meshes by PCA (DESIGN.md 4.2).
+// Builds a morphable model from example meshes by PCA (docs/method.md 2).
 #pragma once
 
 #include "core/landmarks.hpp"

@@ -1,5 +1,7 @@
 #include "core/model_format.hpp"
 
+#include <zlib.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -13,17 +15,11 @@ namespace {
 
 constexpr std::string_view kMagic = "LPDMODEL";
 
-// Byte-at-a-time CRC table for the reflected IEEE polynomial, built at compile time.
-constexpr std::array<std::uint32_t, 256> make_crc_table() {
-  std::array<std::uint32_t, 256> table{};
-  for (std::uint32_t n = 0; n < 256; ++n) {
-    std::uint32_t c = n;
-    for (int bit = 0; bit < 8; ++bit) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-    table[n] = c;
-  }
-  return table;
+/// The payload checksum: zlib's CRC-32 (IEEE 802.3 polynomial, reflected 0xEDB88320,
+/// initial and final XOR 0xFFFFFFFF), the checksum of zlib, PNG and Ethernet.
+std::uint32_t payload_crc(std::span<const std::uint8_t> payload) {
+  return static_cast<std::uint32_t>(::crc32_z(::crc32_z(0, nullptr, 0), payload.data(), payload.size()));
 }
-constexpr auto kCrcTable = make_crc_table();
 
 // --- writing -------------------------------------------------------------
 
@@ -157,7 +153,7 @@ Header read_header(std::span<const std::uint8_t> bytes, const std::string& sourc
   if (h.payload_length < available)
     throw ModelFormatError(source + ": " + std::to_string(available - h.payload_length) +
                            " unexpected bytes after the payload");
-  const std::uint32_t actual = crc32(bytes.subspan(kModelHeaderSize));
+  const std::uint32_t actual = payload_crc(bytes.subspan(kModelHeaderSize));
   if (actual != h.checksum)
     throw ModelFormatError(source + ": checksum mismatch (header says " + std::to_string(h.checksum) +
                            ", payload has " + std::to_string(actual) + "): the file is corrupted");
@@ -210,12 +206,6 @@ void validate_values(const MorphableModel& m, const std::string& source) {
 
 }  // namespace
 
-std::uint32_t crc32(std::span<const std::uint8_t> bytes) {
-  std::uint32_t c = 0xFFFFFFFFu;
-  for (std::uint8_t b : bytes) c = kCrcTable[(c ^ b) & 0xFFu] ^ (c >> 8);
-  return c ^ 0xFFFFFFFFu;
-}
-
 std::vector<std::uint8_t> serialize_model(const MorphableModel& m) {
   check_serializable(m);
   ByteWriter payload;
@@ -240,7 +230,7 @@ std::vector<std::uint8_t> serialize_model(const MorphableModel& m) {
   file.u32(static_cast<std::uint32_t>(m.triangles.size()));
   file.u32(static_cast<std::uint32_t>(m.pose_names.size()));
   file.u64(payload.buffer().size());
-  file.u32(crc32(payload.buffer()));
+  file.u32(payload_crc(payload.buffer()));
   auto& out = file.buffer();
   out.insert(out.end(), payload.buffer().begin(), payload.buffer().end());
   return std::move(out);

@@ -12,7 +12,7 @@
 //       20     4  u32 T
 //       24     4  u32 P
 //       28     8  u64 payload length in bytes (the bytes after the header)
-//       36     4  u32 CRC-32 of the payload (IEEE 802.3 polynomial, as zlib's crc32)
+//       36     4  u32 CRC-32 of the payload (zlib's crc32: the IEEE 802.3 polynomial)
 //       40        payload:
 //                   f32           total_variance
 //                   f32[3N]       mean (x1,y1,z1,...,xN,yN,zN)
@@ -44,10 +44,6 @@ class ModelFormatError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
-
-/// CRC-32 with the IEEE 802.3 polynomial (reflected 0xEDB88320, initial and
-/// final XOR 0xFFFFFFFF), the checksum of zlib, PNG and Ethernet.
-std::uint32_t crc32(std::span<const std::uint8_t> bytes);
 
 /// Encodes a model. Throws std::invalid_argument when the model's own sizes
 /// disagree (e.g. basis rows != mean size) or a pose name exceeds 65535 bytes.

@@ -1,4 +1,4 @@
-// A 3D morphable model (DESIGN.md 4.2): S = mean + basis * (stddev .* alpha).
+// A 3D morphable model (docs/method.md 2): S = mean + basis * (stddev .* alpha).
 #pragma once
 
 #include "core/landmarks.hpp"

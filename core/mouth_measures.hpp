@@ -1,4 +1,4 @@
-// Mouth measures per frame (DESIGN.md 4.4): inner-lip width and height over a
+// Mouth measures per frame (docs/method.md 4): inner-lip width and height over a
 // speech-independent face size, from the tracked landmarks, from the fitted model's
 // projection, and in model space; upper-lip protrusion from the fitted 3D shape.
 #pragma once
@@ -18,7 +18,7 @@ struct MouthRatios {
   double d = 0;       // |midpoint(p39, p42) - p30|: inner eye corners to nose tip, not moved by speech
 };
 
-/// DESIGN.md 4.4 on 2D (image) or 3D (model space) landmarks.
+/// docs/method.md 4 on 2D (image) or 3D (model space) landmarks.
 template <int Dim>
 MouthRatios mouth_ratios(const Eigen::Matrix<double, Dim, kNumLandmarks>& p) {
   MouthRatios r;

@@ -1,5 +1,7 @@
 #include "core/side_profile.hpp"
 
+#include "core/statistics.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -223,11 +225,6 @@ SideReference calibrate_side(SideProfileMeter& meter, std::span<const cv::Mat> n
   }
   if (leads.empty())
     throw SideCalibrationError("side calibration: no neutral frame shows a complete profile (nose and upper lip)");
-  const auto median = [](std::vector<double>& values) {
-    const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-    std::nth_element(values.begin(), middle, values.end());
-    return *middle;
-  };
   return {median(leads), median(lengths)};
 }
 

@@ -1,4 +1,4 @@
-// Upper-lip protrusion from the side camera (DESIGN.md 4.4, last bullet): the face in
+// Upper-lip protrusion from the side camera (docs/method.md 4, last bullet): the face in
 // profile is segmented from the background (grey -> Otsu threshold on a crop -> the
 // foremost face pixel of every row), the profile's landmarks are found along it (nose
 // tip, nose root, subnasale, upper lip), and the upper lip's lead over the nose tip is
@@ -106,9 +106,9 @@ class SideCalibrationError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// The reference from neutral frames (grey, the performer at rest): the medians of the lip
-/// lead and the nose length over the frames whose profile is complete. Throws
-/// SideCalibrationError when there is none.
+/// The reference from neutral frames (grey, the performer at rest): the medians
+/// (core/statistics.hpp) of the lip lead and the nose length over the frames whose profile
+/// is complete. Throws SideCalibrationError when there is none.
 SideReference calibrate_side(SideProfileMeter& meter, std::span<const cv::Mat> neutral_frames);
 
 }  // namespace lipdrive

@@ -1,8 +1,8 @@
-// Viseme weights from fitted shape coefficients (DESIGN.md 4.2 "coefficients (for viseme
-// weights)"): alpha - alpha_neutral ≈ Σ_v w_v c_v with w >= 0, where c_v = alpha(full pose of
-// viseme v) - alpha(neutral). Solved by non-negative least squares (Lawson & Hanson 1974,
-// "Solving Least Squares Problems", ch. 23, algorithm NNLS) on the fixed-size normal
-// equations, then clamped to [0, 1].
+// Viseme weights from fitted shape coefficients (docs/method.md 8):
+// alpha - alpha_neutral ≈ Σ_v w_v c_v with w >= 0, where c_v = alpha(full pose of viseme v) -
+// alpha(neutral). Solved by non-negative least squares (Lawson & Hanson 1974, "Solving Least
+// Squares Problems", ch. 23, algorithm NNLS) on the fixed-size normal equations, then clamped
+// to [0, 1].
 #pragma once
 
 #include "core/drive_signals.hpp"  // kNumVisemes, kVisemeNames

@@ -8,7 +8,7 @@ packages=(
   libeigen3-dev libopencv-dev libdlib-dev libdlib-data
   libmodbus-dev libgpiod-dev libcamera-dev libsystemd-dev
   libcli11-dev libspdlog-dev libfmt-dev libtomlplusplus-dev nlohmann-json3-dev
-  libtinyobjloader-dev libcpp-httplib-dev
+  libtinyobjloader-dev libcpp-httplib-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   socat ffmpeg systemd
 )
