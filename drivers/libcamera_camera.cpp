@@ -1,5 +1,7 @@
 #include "drivers/libcamera_camera.hpp"
 
+#include "core/backoff.hpp"
+
 #include <sys/mman.h>
 
 #include <libcamera/libcamera.h>
@@ -354,8 +356,8 @@ class LibcameraCamera::Impl {
     held_ = nullptr;
     session_.reset();
     stream_started_ = false;
-    reconnect_delay_ = kReconnectInitial;
-    next_reconnect_ = Clock::now() + reconnect_delay_;
+    reconnect_backoff_.succeeded();  // the camera was up: retries start again at the first delay
+    next_reconnect_ = Clock::now() + reconnect_backoff_.failed();
     return GrabStatus::kDisconnected;
   }
 
@@ -370,10 +372,10 @@ class LibcameraCamera::Impl {
       session_ = Session::open(find_camera(), options_);
     } catch (const SourceError& error) {
       spdlog::debug("{}: reconnect failed: {}", description_, error.what());
-      reconnect_delay_ = std::min(2 * reconnect_delay_, std::chrono::milliseconds(kReconnectMax));
-      next_reconnect_ = Clock::now() + reconnect_delay_;
+      next_reconnect_ = Clock::now() + reconnect_backoff_.failed();
       return false;
     }
+    reconnect_backoff_.succeeded();
     spdlog::info("{}: camera reconnected", description_);
     return true;
   }
@@ -405,7 +407,7 @@ class LibcameraCamera::Impl {
   std::uint32_t first_camera_sequence_ = 0;
   std::int64_t first_capture_ns_ = -1;
 
-  std::chrono::milliseconds reconnect_delay_{0};
+  Backoff reconnect_backoff_{kReconnectInitial, kReconnectMax};
   Clock::time_point next_reconnect_{};
 };
 

@@ -13,8 +13,9 @@ namespace lipdrive {
 std::string describe(const ModbusEndpoint& endpoint) {
   if (endpoint.transport == ModbusEndpoint::Transport::kTcp)
     return fmt::format("tcp {}:{}", endpoint.address, endpoint.port);
-  return fmt::format("rtu {} {} {}{}{} unit {}", endpoint.device, endpoint.baud, endpoint.data_bits,
-                     endpoint.parity, endpoint.stop_bits, endpoint.unit_id);
+  const SerialPortSettings& line = endpoint.line;
+  return fmt::format("rtu {} {} {}{}{} unit {}", line.device, line.baud, line.data_bits, line.parity, line.stop_bits,
+                     endpoint.unit_id);
 }
 
 void ModbusContextDeleter::operator()(modbus_t* context) const {
@@ -25,8 +26,8 @@ void ModbusContextDeleter::operator()(modbus_t* context) const {
 ModbusContext make_context(const ModbusEndpoint& endpoint) {
   modbus_t* raw = endpoint.transport == ModbusEndpoint::Transport::kTcp
                       ? modbus_new_tcp(endpoint.address.c_str(), endpoint.port)
-                      : modbus_new_rtu(endpoint.device.c_str(), endpoint.baud, endpoint.parity,
-                                       endpoint.data_bits, endpoint.stop_bits);
+                      : modbus_new_rtu(endpoint.line.device.c_str(), endpoint.line.baud, endpoint.line.parity,
+                                       endpoint.line.data_bits, endpoint.line.stop_bits);
   if (raw == nullptr)
     throw std::runtime_error(fmt::format("modbus {}: {}", describe(endpoint), modbus_strerror(errno)));
   ModbusContext context(raw);
@@ -38,7 +39,7 @@ ModbusContext make_context(const ModbusEndpoint& endpoint) {
 
 bool connect_context(modbus_t* context, const ModbusEndpoint& endpoint) {
   if (modbus_connect(context) == -1) return false;
-  if (endpoint.transport == ModbusEndpoint::Transport::kRtu && endpoint.rs485 &&
+  if (endpoint.transport == ModbusEndpoint::Transport::kRtu && endpoint.line.rs485 &&
       modbus_rtu_set_serial_mode(context, MODBUS_RTU_RS485) == -1)
     spdlog::warn("modbus {}: cannot switch to RS-485 mode ({}); relying on the adapter", describe(endpoint),
                  modbus_strerror(errno));

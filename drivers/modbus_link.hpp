@@ -1,9 +1,11 @@
-// Thin RAII over libmodbus 3.1 (DESIGN.md 5): where a Modbus peer is (TCP or RTU), an owned
+// Thin RAII over libmodbus 3.1 (docs/data-flow.md): where a Modbus peer is (TCP or RTU), an owned
 // context, and a client that writes holding registers. Never includes core/.
 //
 // Thread model: a libmodbus context is not thread-safe. Every object here is used by one
 // thread at a time; the owner hands it to its worker thread before starting it.
 #pragma once
+
+#include "drivers/serial_port.hpp"
 
 #include <modbus/modbus.h>
 
@@ -15,19 +17,17 @@
 
 namespace lipdrive {
 
+/// Modbus/TCP's registered port is 502, which needs privileges; lipdrive serves 1502.
+inline constexpr int kDefaultModbusTcpPort = 1502;
+
 /// A Modbus peer: TCP address and port, or RTU over a serial line.
 struct ModbusEndpoint {
   enum class Transport { kTcp, kRtu };
   Transport transport = Transport::kTcp;
   std::string address = "127.0.0.1";  // tcp
-  int port = 1502;                    // tcp
-  std::string device;                 // rtu
-  int baud = 115200;
-  char parity = 'N';  // 'N', 'E' or 'O'
-  int data_bits = 8;
-  int stop_bits = 1;
-  bool rs485 = false;  // RTU: ask the kernel driver to switch the transceiver (TIOCSRS485)
-  int unit_id = 1;     // slave id, 1..247
+  int port = kDefaultModbusTcpPort;   // tcp
+  SerialPortSettings line;            // rtu; rs485: let the kernel driver switch the transceiver
+  int unit_id = 1;                    // slave id, 1..247
 };
 
 /// "tcp 127.0.0.1:1502" or "rtu /dev/ttyUSB0 115200 8N1 unit 1".

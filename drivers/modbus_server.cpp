@@ -1,5 +1,7 @@
 #include "drivers/modbus_server.hpp"
 
+#include "core/backoff.hpp"
+
 #include <fmt/format.h>
 #include <modbus/modbus-tcp.h>
 #include <spdlog/spdlog.h>
@@ -20,21 +22,10 @@
 
 namespace lipdrive {
 
-UniqueFd& UniqueFd::operator=(UniqueFd&& other) noexcept {
-  if (this != &other) {
-    if (fd_ != -1) ::close(fd_);
-    fd_ = std::exchange(other.fd_, -1);
-  }
-  return *this;
-}
-
-UniqueFd::~UniqueFd() {
-  if (fd_ != -1) ::close(fd_);
-}
-
 namespace {
 
-constexpr int kReopenIntervalMs = 1000;  // RTU: how often a failed serial line is reopened
+// RTU: a failed serial line is reopened with back-off, from 100 ms up to 5 s.
+constexpr std::chrono::milliseconds kReopenFirst{100}, kReopenMax{5000};
 
 /// The holding registers a request writes and the values they get, decoded from the request
 /// itself so that the owner hears of a write before the acknowledgement goes out. Empty when
@@ -150,9 +141,7 @@ bool ModbusServer::answer_one() {
           decode_write(query_.data() + modbus_get_header_length(context),
                        {mapping_->tab_registers, static_cast<std::size_t>(mapping_->nb_registers)}, values))
     written_(write->address, write->values);
-  if (modbus_reply(context, query_.data(), length, mapping_.get()) == -1) return false;
-  requests_.fetch_add(1, std::memory_order_relaxed);
-  return true;
+  return modbus_reply(context, query_.data(), length, mapping_.get()) != -1;
 }
 
 void ModbusServer::serve_tcp() {
@@ -192,17 +181,21 @@ void ModbusServer::serve_tcp() {
 
 void ModbusServer::serve_rtu() {
   modbus_t* context = context_.get();
+  Backoff reopen(kReopenFirst, kReopenMax);
   while (!stopping_.load(std::memory_order_relaxed)) {
     if (!healthy_.load(std::memory_order_relaxed)) {
-      if (wait_readable(-1, kReopenIntervalMs) == 0 && stopping_.load(std::memory_order_relaxed)) break;
+      const auto delay = std::chrono::duration_cast<std::chrono::milliseconds>(reopen.failed());
+      if (wait_readable(-1, static_cast<int>(delay.count())) == 0 && stopping_.load(std::memory_order_relaxed)) break;
       if (!connect_context(context, endpoint_)) continue;
       spdlog::info("modbus server {}: serial line open again", describe());
+      reopen.succeeded();
       healthy_.store(true, std::memory_order_relaxed);
     }
     const short events = wait_readable(modbus_get_socket(context), -1);
     if (events == 0) break;  // stop
     if (events & (POLLHUP | POLLERR | POLLNVAL)) {
-      spdlog::error("modbus server {}: serial line failed; reopening every {} ms", describe(), kReopenIntervalMs);
+      spdlog::error("modbus server {}: serial line failed; reopening with back-off up to {} ms", describe(),
+                    kReopenMax.count());
       modbus_close(context);
       healthy_.store(false, std::memory_order_relaxed);
       continue;

@@ -11,6 +11,7 @@
 #pragma once
 
 #include "drivers/modbus_link.hpp"
+#include "drivers/unique_fd.hpp"
 
 #include <atomic>
 #include <cstdint>
@@ -18,24 +19,9 @@
 #include <span>
 #include <string>
 #include <thread>
-#include <utility>
 #include <vector>
 
 namespace lipdrive {
-
-/// An owned file descriptor (closed on destruction).
-class UniqueFd {
- public:
-  UniqueFd() = default;
-  explicit UniqueFd(int fd) : fd_(fd) {}
-  UniqueFd(UniqueFd&& other) noexcept : fd_(std::exchange(other.fd_, -1)) {}
-  UniqueFd& operator=(UniqueFd&& other) noexcept;
-  ~UniqueFd();
-  int get() const { return fd_; }
-
- private:
-  int fd_ = -1;
-};
 
 class ModbusServer {
  public:
@@ -61,8 +47,6 @@ class ModbusServer {
   std::string describe() const;
   /// False after the serial line failed (unplugged adapter); the server reopens it by itself.
   bool healthy() const { return healthy_.load(std::memory_order_relaxed); }
-  /// Requests answered (normally or with an exception).
-  std::uint64_t requests() const { return requests_.load(std::memory_order_relaxed); }
 
   /// How long a request may take to arrive completely once its first byte is there: bounds
   /// how long one slow or broken peer holds up the others and how long destruction waits.
@@ -91,7 +75,6 @@ class ModbusServer {
   int port_ = 0;
   std::vector<std::uint8_t> query_;
   std::atomic<bool> stopping_{false}, healthy_{true};
-  std::atomic<std::uint64_t> requests_{0};
   std::thread thread_;
 };
 

@@ -70,49 +70,43 @@ std::string describe_serial_settings(const SerialPortSettings& settings) {
 
 SerialPort::SerialPort(const SerialPortSettings& settings) : settings_(settings) {
   validate_serial_settings(settings_);
-  fd_ = ::open(settings_.device.c_str(), O_WRONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-  if (fd_ < 0) throw_os_error(settings_, "cannot open", errno);
-  // From here on a throw must not leak the descriptor: the destructor does not run.
-  try {
-    termios options{};
-    if (::tcgetattr(fd_, &options) != 0) throw_os_error(settings_, "not a serial line", errno);
-    ::cfmakeraw(&options);
-    options.c_cflag &= ~(CSIZE | PARENB | PARODD | CSTOPB | CRTSCTS | HUPCL);
-    // CLOCAL: no modem control. Without it a missing DCD on an RS-232 adapter hangs the line up.
-    options.c_cflag |= CLOCAL | CREAD | data_bits_flag(settings_.data_bits);
-    if (settings_.parity != 'N') options.c_cflag |= PARENB | (settings_.parity == 'O' ? PARODD : 0);
-    if (settings_.stop_bits == 2) options.c_cflag |= CSTOPB;
-    options.c_cc[VMIN] = 0;
-    options.c_cc[VTIME] = 0;
-    const speed_t speed = baud_constant(settings_.baud);
-    ::cfsetispeed(&options, speed);
-    ::cfsetospeed(&options, speed);
-    if (::tcsetattr(fd_, TCSANOW, &options) != 0) throw_os_error(settings_, "cannot set line settings", errno);
-    // Bytes a previous owner left in the queue are stale values: never send them.
-    ::tcflush(fd_, TCIOFLUSH);
+  fd_ = UniqueFd(::open(settings_.device.c_str(), O_WRONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
+  if (!fd_.valid()) throw_os_error(settings_, "cannot open", errno);
+  const int fd = fd_.get();
+  // A throw from here on closes the descriptor with fd_.
+  termios options{};
+  if (::tcgetattr(fd, &options) != 0) throw_os_error(settings_, "not a serial line", errno);
+  ::cfmakeraw(&options);
+  options.c_cflag &= ~(CSIZE | PARENB | PARODD | CSTOPB | CRTSCTS | HUPCL);
+  // CLOCAL: no modem control. Without it a missing DCD on an RS-232 adapter hangs the line up.
+  options.c_cflag |= CLOCAL | CREAD | data_bits_flag(settings_.data_bits);
+  if (settings_.parity != 'N') options.c_cflag |= PARENB | (settings_.parity == 'O' ? PARODD : 0);
+  if (settings_.stop_bits == 2) options.c_cflag |= CSTOPB;
+  options.c_cc[VMIN] = 0;
+  options.c_cc[VTIME] = 0;
+  const speed_t speed = baud_constant(settings_.baud);
+  ::cfsetispeed(&options, speed);
+  ::cfsetospeed(&options, speed);
+  if (::tcsetattr(fd, TCSANOW, &options) != 0) throw_os_error(settings_, "cannot set line settings", errno);
+  // Bytes a previous owner left in the queue are stale values: never send them.
+  ::tcflush(fd, TCIOFLUSH);
 
-    if (settings_.rs485) {
-      serial_rs485 rs485{};
-      // RTS high while sending drives the transceiver's DE pin; low again after the last bit.
-      rs485.flags = SER_RS485_ENABLED | SER_RS485_RTS_ON_SEND;
-      if (::ioctl(fd_, TIOCSRS485, &rs485) == 0) {
-        rs485_active_ = true;
-      } else {
-        rs485_refusal_ = std::strerror(errno);
-      }
+  if (settings_.rs485) {
+    serial_rs485 rs485{};
+    // RTS high while sending drives the transceiver's DE pin; low again after the last bit.
+    rs485.flags = SER_RS485_ENABLED | SER_RS485_RTS_ON_SEND;
+    if (::ioctl(fd, TIOCSRS485, &rs485) == 0) {
+      rs485_active_ = true;
+    } else {
+      rs485_refusal_ = std::strerror(errno);
     }
-  } catch (...) {
-    ::close(fd_);
-    throw;
   }
 }
-
-SerialPort::~SerialPort() { ::close(fd_); }
 
 SerialPort::WriteResult SerialPort::write_some(std::span<const std::uint8_t> bytes) {
   ssize_t result;
   do {
-    result = ::write(fd_, bytes.data(), bytes.size());
+    result = ::write(fd_.get(), bytes.data(), bytes.size());
   } while (result < 0 && errno == EINTR);
   if (result >= 0) return {WriteStatus::kWritten, static_cast<std::size_t>(result), 0};
   const int error = errno;
@@ -124,7 +118,7 @@ SerialPort::WriteResult SerialPort::write_some(std::span<const std::uint8_t> byt
 
 std::size_t SerialPort::queued_bytes() const {
   int queued = 0;
-  if (::ioctl(fd_, TIOCOUTQ, &queued) != 0) return 0;
+  if (::ioctl(fd_.get(), TIOCOUTQ, &queued) != 0) return 0;
   return static_cast<std::size_t>(std::max(queued, 0));
 }
 

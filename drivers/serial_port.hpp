@@ -8,8 +8,10 @@
 // Vanishing devices: a USB adapter unplugged, a pty whose other side closed, a tty hung up
 // all make writes fail with EIO/ENXIO/ENODEV/EBADF/EPIPE; write_some reports them as kGone.
 // The port object is then useless: the owner destroys it and opens a new one (with back-off)
-// when it wants to try again. Keeping reopening out of this class keeps it a plain RAII fd.
+// when it wants to try again. Keeping reopening out of this class keeps it a plain owner of its fd.
 #pragma once
+
+#include "drivers/unique_fd.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -64,7 +66,6 @@ class SerialPort {
   /// request the driver refuses does not fail the open (auto-direction transceivers need
   /// none): rs485_active() is false and rs485_refusal() says why, for the owner to log.
   explicit SerialPort(const SerialPortSettings& settings);
-  ~SerialPort();
   SerialPort(const SerialPort&) = delete;
   SerialPort& operator=(const SerialPort&) = delete;
 
@@ -81,7 +82,7 @@ class SerialPort {
 
  private:
   SerialPortSettings settings_;
-  int fd_ = -1;
+  UniqueFd fd_;
   bool rs485_active_ = false;
   std::string rs485_refusal_;
 };

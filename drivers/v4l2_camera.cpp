@@ -1,8 +1,10 @@
 #include "drivers/v4l2_camera.hpp"
 
+#include "drivers/clock.hpp"
+#include "drivers/unique_fd.hpp"
+
 #include <fcntl.h>
 #include <sys/mman.h>
-#include <time.h>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -30,7 +32,7 @@ class V4l2Stream {
     std::size_t length;
   };
 
-  V4l2Stream(SystemCalls& system, int fd) : system(system), fd(fd) {}
+  V4l2Stream(SystemCalls& system, int fd) : system(system), owned_fd(fd, system), fd(fd) {}
   ~V4l2Stream() {
     if (streaming) {
       // Fails with ENODEV after an unplug; the buffers are released all the same.
@@ -38,13 +40,14 @@ class V4l2Stream {
       system.ioctl(fd, VIDIOC_STREAMOFF, &type);
     }
     for (const MappedBuffer& buffer : buffers) system.munmap(buffer.data, buffer.length);
-    system.close(fd);
+    // owned_fd closes the device last, after the buffers are unmapped.
   }
   V4l2Stream(const V4l2Stream&) = delete;
   V4l2Stream& operator=(const V4l2Stream&) = delete;
 
   SystemCalls& system;
-  const int fd;
+  const UniqueFd owned_fd;
+  const int fd;  // owned_fd.get()
   std::vector<MappedBuffer> buffers;
   bool streaming = false;
   int held = -1;  // index of the buffer the caller is reading, -1 if none
@@ -273,9 +276,7 @@ std::int64_t capture_time_ns(const v4l2_buffer& buffer) {
   if ((buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
     return std::int64_t{buffer.timestamp.tv_sec} * 1'000'000'000 +
            std::int64_t{buffer.timestamp.tv_usec} * 1'000;
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
+  return monotonic_ns();
 }
 
 int milliseconds_until(std::chrono::steady_clock::time_point deadline) {
@@ -311,7 +312,10 @@ std::string_view pixel_format_name(PixelFormat format) {
 }
 
 V4l2Camera::V4l2Camera(V4l2Options options, SystemCalls& system)
-    : options_(std::move(options)), system_(system), path_(resolve_device_path(options_.device)) {
+    : options_(std::move(options)),
+      system_(system),
+      path_(resolve_device_path(options_.device)),
+      reconnect_backoff_(options_.reconnect_initial, options_.reconnect_max) {
   start_stream();
 }
 
@@ -433,8 +437,8 @@ GrabStatus V4l2Camera::fail(int error, const char* call) {
 void V4l2Camera::disconnect() {
   stream_.reset();
   ++counters_.disconnects;
-  reconnect_delay_ = options_.reconnect_initial;
-  next_reconnect_ = Clock::now() + reconnect_delay_;
+  reconnect_backoff_.succeeded();  // the stream was up: retries start again at the first delay
+  next_reconnect_ = Clock::now() + reconnect_backoff_.failed();
 }
 
 bool V4l2Camera::reconnect_before(Clock::time_point deadline) {
@@ -448,10 +452,10 @@ bool V4l2Camera::reconnect_before(Clock::time_point deadline) {
     start_stream();
   } catch (const SourceError& error) {
     reconnect_error_ = error.what();
-    reconnect_delay_ = std::min(2 * reconnect_delay_, options_.reconnect_max);
-    next_reconnect_ = Clock::now() + reconnect_delay_;
+    next_reconnect_ = Clock::now() + reconnect_backoff_.failed();
     return false;
   }
+  reconnect_backoff_.succeeded();
   reconnect_error_.clear();
   ++counters_.reconnects;
   return true;

@@ -15,6 +15,7 @@
 // without recreating the camera.
 #pragma once
 
+#include "core/backoff.hpp"
 #include "drivers/frame_source.hpp"
 #include "drivers/system_calls.hpp"
 
@@ -121,7 +122,7 @@ class V4l2Camera final : public FrameSource {
   std::int64_t first_capture_ns_ = -1;
 
   Clock::time_point next_reconnect_{};
-  std::chrono::milliseconds reconnect_delay_{0};
+  Backoff reconnect_backoff_;
   std::string reconnect_error_;
 };
 

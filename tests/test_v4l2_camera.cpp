@@ -1,11 +1,11 @@
 // The V4L2 driver against a fake device behind the system-call seam, plus one check that
 // the real system calls fail cleanly.
+#include "drivers/clock.hpp"
 #include "drivers/v4l2_camera.hpp"
 #include "tests/fake_v4l2_device.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
-#include <time.h>
 
 #include <chrono>
 #include <ostream>
@@ -32,12 +32,6 @@ V4l2Options options_for(const FakeV4l2Device::Config& config, PixelFormat format
   options.reconnect_initial = 5ms;
   options.reconnect_max = 20ms;
   return options;
-}
-
-std::int64_t monotonic_now_ns() {
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
 }
 
 std::string error_of(const FakeV4l2Device::Config& config, const V4l2Options& options) {
@@ -400,9 +394,9 @@ TEST(V4l2Buffers, OtherTimestampsAreReplacedByTheDequeueTime) {
   V4l2Camera camera(options_for(config), device);
   Frame frame;
   ASSERT_TRUE(device.produce(test_pattern(device.size(), 0)));
-  const std::int64_t before = monotonic_now_ns();
+  const std::int64_t before = monotonic_ns();
   ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
-  const std::int64_t after = monotonic_now_ns();
+  const std::int64_t after = monotonic_ns();
   EXPECT_NE(frame.capture_time_ns, device.last_timestamp_ns());
   EXPECT_GE(frame.capture_time_ns, before);
   EXPECT_LE(frame.capture_time_ns, after);
