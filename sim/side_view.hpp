@@ -1,5 +1,5 @@
 // The side camera's view of the built-in head: its poses rendered in profile, with the
-// ground truth of upper-lip protrusion taken from the 3D shape (DESIGN.md 4.4, last
+// ground truth of upper-lip protrusion taken from the 3D shape (docs/method.md 4, last
 // bullet). The fixture clip follows a scripted trajectory of neutral, rounded and open
 // visemes at several intensities.
 #pragma once

@@ -1,5 +1,7 @@
 #include "sim/simulated_camera.hpp"
 
+#include "drivers/clock.hpp"
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -12,12 +14,6 @@
 
 namespace lipdrive {
 namespace {
-
-std::int64_t monotonic_now_ns() {
-  timespec now{};
-  ::clock_gettime(CLOCK_MONOTONIC, &now);
-  return std::int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
-}
 
 // Sleeping to an absolute deadline (not for a duration) keeps the replay from drifting.
 void sleep_until_ns(std::int64_t deadline_ns) {
@@ -112,7 +108,7 @@ void SimulatedCamera::rewind() {
 bool SimulatedCamera::wait_until_due(std::chrono::milliseconds timeout) const {
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
   const std::int64_t deadline = start_ns_ + static_cast<std::int64_t>(sequence_) * period_ns;
-  const std::int64_t now = monotonic_now_ns();
+  const std::int64_t now = monotonic_ns();
   const std::int64_t timeout_ns = std::chrono::nanoseconds(timeout).count();
   if (deadline - now > timeout_ns) {
     sleep_until_ns(now + timeout_ns);
@@ -124,7 +120,7 @@ bool SimulatedCamera::wait_until_due(std::chrono::milliseconds timeout) const {
 
 std::optional<GrabStatus> SimulatedCamera::injected_outage(std::chrono::milliseconds timeout) {
   if (outage_until_ns_ == 0) return std::nullopt;
-  const std::int64_t timeout_end = monotonic_now_ns() + std::chrono::nanoseconds(timeout).count();
+  const std::int64_t timeout_end = monotonic_ns() + std::chrono::nanoseconds(timeout).count();
   if (outage_until_ns_ > timeout_end) {
     sleep_until_ns(timeout_end);
     return outage_status_;
@@ -133,7 +129,7 @@ std::optional<GrabStatus> SimulatedCamera::injected_outage(std::chrono::millisec
   outage_until_ns_ = 0;
   // Resume at the recording's pace from now on, not with a burst of overdue frames.
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
-  start_ns_ = monotonic_now_ns() - static_cast<std::int64_t>(sequence_) * period_ns;
+  start_ns_ = monotonic_ns() - static_cast<std::int64_t>(sequence_) * period_ns;
   return std::nullopt;
 }
 
@@ -143,7 +139,7 @@ GrabStatus SimulatedCamera::inject_frame_faults() {
   const auto every = [n](int period) { return period > 0 && n % period == 0; };
   const auto begin_outage = [this](GrabStatus status, std::chrono::milliseconds duration) {
     outage_status_ = status;
-    outage_until_ns_ = monotonic_now_ns() + std::chrono::nanoseconds(duration).count();
+    outage_until_ns_ = monotonic_ns() + std::chrono::nanoseconds(duration).count();
   };
   if (n == faults.disconnect_after)
     begin_outage(GrabStatus::kDisconnected, faults.reconnect);
@@ -162,7 +158,7 @@ GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout
   if (ended_) return GrabStatus::kEndOfStream;
   if (const auto outage = injected_outage(timeout)) return *outage;
   if (options_.real_time) {
-    if (start_ns_ == 0) start_ns_ = monotonic_now_ns();
+    if (start_ns_ == 0) start_ns_ = monotonic_ns();
     if (!wait_until_due(timeout)) return GrabStatus::kTimeout;
   }
 
@@ -178,7 +174,7 @@ GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout
   }
   // A frame that could not be decoded still used up its slot: the sequence gap shows it.
   frame.sequence = sequence_++;
-  frame.capture_time_ns = monotonic_now_ns();
+  frame.capture_time_ns = monotonic_ns();
   return status == GrabStatus::kFrame ? inject_frame_faults() : status;
 }
 

@@ -1,6 +1,6 @@
 // A FrameSource that replays a recording: a video file (OpenCV, FFmpeg backend), a
 // single image, or a folder of images in file-name order. CI and a bench without
-// hardware run the whole pipeline through it (DESIGN.md 6).
+// hardware run the whole pipeline through it (docs/data-flow.md).
 #pragma once
 
 #include "drivers/frame_source.hpp"

@@ -1,5 +1,5 @@
 // The built-in head: a face mesh and its viseme poses, generated deterministically
-// (DESIGN.md 4.2: neutral + 16 visemes x 10 intensities).
+// (docs/method.md 2: neutral + 16 visemes x 10 intensities).
 #pragma once
 
 #include "core/drive_signals.hpp"  // kVisemeNames

@@ -1,8 +1,8 @@
 // A talking face with known ground truth, made from one real photograph: the mouth
 // landmarks follow a scripted trajectory (open, spread, round, silence) and a
 // piecewise-affine warp on a triangulation of the landmarks moves the pixels with them
-// (DESIGN.md 6). The truth is measured on the moved landmarks exactly as the pipeline
-// measures the tracked ones (core/mouth_measures.hpp, DESIGN.md 4.4).
+// (docs/data-flow.md). The truth is measured on the moved landmarks exactly as the pipeline
+// measures the tracked ones (core/mouth_measures.hpp, docs/method.md 4).
 #pragma once
 
 #include "core/landmarks.hpp"

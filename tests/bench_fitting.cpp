@@ -1,7 +1,7 @@
-// Per-frame fit time (DESIGN.md 4.3) for the default landmark set F4, 20 and 40 components,
+// Per-frame fit time (docs/method.md 3) for the default landmark set F4, 20 and 40 components,
 // 1 and 3 iterations, warm-started frame to frame as the pipeline does.
 #include "core/fitting.hpp"
-#include "firmware_app/model_files.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "reference_fitter.hpp"
 
 #include <benchmark/benchmark.h>

@@ -1,5 +1,5 @@
 // Test fixtures for the fitter: a random face-sized model, synthetic landmarks, and a
-// plainly written dynamic-size reference of DESIGN.md 4.3 that builds the full 2L x 8 and
+// plainly written dynamic-size reference of docs/method.md 3 that builds the full 2L x 8 and
 // 2L x K systems literally, to check the fixed-size Fitter against.
 #pragma once
 
@@ -112,7 +112,7 @@ inline Eigen::MatrixXd reference_normalisation(const Eigen::MatrixXd& points) {
   return transform;
 }
 
-/// DESIGN.md 4.3 written out with dynamic matrices and general solvers.
+/// docs/method.md 3 written out with dynamic matrices and general solvers.
 inline ReferenceFit reference_fit(const MorphableModel& model, LandmarkSet set, const Landmarks2D& detected,
                                   Eigen::VectorXd alpha, const FitSettings& settings) {
   const std::span<const int> indices = landmark_indices(set);

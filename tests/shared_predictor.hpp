@@ -2,7 +2,7 @@
 // takes seconds to read, and every tracker in a test can share it.
 #pragma once
 
-#include "firmware_app/predictor_file.hpp"
+#include "firmware_app/config/predictor_file.hpp"
 
 #include <memory>
 

@@ -3,9 +3,9 @@
 // the whole channel and come back to rest in the closing silence.
 #include "fixture_paths.hpp"
 #include "daemon_process.hpp"
-#include "firmware_app/model_files.hpp"
-#include "firmware_app/performer_profile.hpp"
-#include "firmware_app/pipeline.hpp"
+#include "firmware_app/config/model_files.hpp"
+#include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/daemon/pipeline.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -64,7 +64,7 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
   EXPECT_NE(output.find("performer grid"), std::string::npos) << output;
   const PerformerProfile profile = load_profile(dir / "grid.toml");
   EXPECT_TRUE(profile.calibrated);
-  ASSERT_TRUE(profile.face_indices.has_value()) << "the neutral face's indices (DESIGN.md 4.6)";
+  ASSERT_TRUE(profile.face_indices.has_value()) << "the neutral face's indices (docs/method.md 6)";
   EXPECT_GT((*profile.face_indices)[kVerticalMouthHeightIndex], 5);
   EXPECT_NE(output.find("vertical mouth height"), std::string::npos) << output;
   EXPECT_GT(profile.open.max, profile.open.min + 0.1) << output;

@@ -1,4 +1,4 @@
-// Performer calibration (DESIGN.md 4.4 "Scaled"): neutral + range of motion -> [0, 1].
+// Performer calibration (docs/method.md 4 "Scaled"): neutral + range of motion -> [0, 1].
 #include "core/calibration.hpp"
 
 #include <gtest/gtest.h>

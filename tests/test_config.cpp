@@ -1,7 +1,7 @@
 // The daemon's configuration file: the reference file is valid, and every kind of mistake
 // is reported with the file, the key and the reason.
 #include "fixture_paths.hpp"
-#include "firmware_app/config.hpp"
+#include "firmware_app/config/config.hpp"
 
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -173,7 +173,7 @@ TEST_F(ConfigTest, ChannelsAndOutputsLoad) {
   EXPECT_EQ(config.safety.ease_ns, 300'000'000);
   ASSERT_EQ(config.outputs.modbus_servers.size(), 2u);
   EXPECT_EQ(config.outputs.modbus_servers[0].link.port, 15020);
-  EXPECT_EQ(config.outputs.modbus_servers[1].link.transport, ModbusLinkOptions::Transport::kRtu);
+  EXPECT_EQ(config.outputs.modbus_servers[1].link.transport, ModbusEndpoint::Transport::kRtu);
   EXPECT_EQ(config.outputs.modbus_servers[1].link.line.parity, 'E');
   EXPECT_EQ(config.outputs.modbus_servers[1].link.unit_id, 7);
   ASSERT_EQ(config.outputs.serial.size(), 1u);

@@ -5,8 +5,8 @@
 #include "fixture_paths.hpp"
 #include "daemon_process.hpp"
 #include "drivers/modbus_link.hpp"
-#include "firmware_app/drive_output.hpp"
-#include "firmware_app/modbus_output.hpp"
+#include "firmware_app/outputs/output.hpp"
+#include "firmware_app/outputs/modbus_server_output.hpp"
 #include "serial_peers.hpp"
 
 #include <fmt/format.h>

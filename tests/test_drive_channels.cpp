@@ -1,4 +1,4 @@
-// The safety layer of the drive (DESIGN.md 5): mapping, clamp, slew limit, fail-safe ease.
+// The safety layer of the drive (docs/data-flow.md): mapping, clamp, slew limit, fail-safe ease.
 #include "allocation_counter.hpp"
 #include "core/calibration.hpp"
 #include "core/drive_channels.hpp"

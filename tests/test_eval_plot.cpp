@@ -1,8 +1,8 @@
 // The CSV reader, GRID alignments, and the `lipdrive eval` and `lipdrive plot`
 // commands run as a user runs them (the built binary on small files).
-#include "firmware_app/command_error.hpp"
-#include "firmware_app/csv_table.hpp"
-#include "firmware_app/grid_align.hpp"
+#include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/tables/csv_table.hpp"
+#include "firmware_app/tables/grid_align.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -2,7 +2,7 @@
 // acquire -> track -> lose -> re-acquire cycle.
 #include "core/face_tracker.hpp"
 #include "core/shape_predictor.hpp"
-#include "firmware_app/command_error.hpp"
+#include "firmware_app/cli/command_error.hpp"
 #include "allocation_counter.hpp"
 #include "shared_predictor.hpp"
 

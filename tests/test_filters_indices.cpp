@@ -1,8 +1,8 @@
 // The 1€ filter (core/one_euro_filter) and the facial indices with the performer <-> model
-// compatibility check (core/facial_indices, DESIGN.md 4.6).
+// compatibility check (core/facial_indices, docs/method.md 6).
 #include "core/facial_indices.hpp"
 #include "core/one_euro_filter.hpp"
-#include "firmware_app/model_files.hpp"
+#include "firmware_app/config/model_files.hpp"
 
 #include <gtest/gtest.h>
 

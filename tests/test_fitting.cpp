@@ -1,6 +1,6 @@
 #include "core/fitting.hpp"
 #include "core/mouth_measures.hpp"
-#include "firmware_app/model_files.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "reference_fitter.hpp"
 
 #include <gtest/gtest.h>

@@ -1,8 +1,8 @@
 // The GPIO output's logic against a fake chip (the GpioLines seam), the debouncer on exact
 // timings, and the real libgpiod driver's errors (this machine has no GPIO chip).
 #include "drivers/gpio_lines.hpp"
-#include "firmware_app/debouncer.hpp"
-#include "firmware_app/gpio_output.hpp"
+#include "firmware_app/outputs/debouncer.hpp"
+#include "firmware_app/outputs/gpio_output.hpp"
 
 #include <gtest/gtest.h>
 #include <spdlog/sinks/ringbuffer_sink.h>
@@ -111,7 +111,7 @@ class GpioOutputTest : public ::testing::Test {
                     std::int64_t to_ns) {
     chip.inputs[button] = level;
     std::int64_t now = from_ns;
-    for (; now < to_ns; now += 20 * kMs) output.publish(frame_at(now));
+    for (; now < to_ns; now += 20 * kMs) output.publish(frame_at(now, status));
     return now;
   }
 
@@ -121,6 +121,7 @@ class GpioOutputTest : public ::testing::Test {
     return hold(button, false, released, released + 100 * kMs);
   }
 
+  std::uint16_t status = kTrackingOk;  // the status word of the frames hold() publishes
   FakeChip chip;
   DriveControl control;
   GpioOutput output{all_lines(), std::make_unique<FakeGpioLines>(chip), control};
@@ -194,12 +195,12 @@ TEST_F(GpioOutputTest, RecordPressStartsATakeOrStopsTheOneRecording) {
   EXPECT_EQ(control.recording_request.load(), 1) << "nothing recording: start";
 
   control.recording_request.store(-1);  // the daemon acted on it
-  control.daemon_status.store(kStatusRecording | kStatusCalibrated);
+  status = kTrackingOk | kStatusRecording | kStatusCalibrated;
   now = press("GPIO23", now);
   EXPECT_EQ(control.recording_request.load(), 0) << "recording: stop";
 
   control.recording_request.store(-1);
-  control.daemon_status.store(kStatusCalibrated);
+  status = kTrackingOk | kStatusCalibrated;
   press("GPIO23", now);
   EXPECT_EQ(control.recording_request.load(), 1);
   EXPECT_EQ(control.calibrate_requests.load(), 0u);

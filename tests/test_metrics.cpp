@@ -1,4 +1,4 @@
-// compare_series (DESIGN.md 4.5) on series whose metrics can be worked out by hand.
+// compare_series (docs/method.md 5) on series whose metrics can be worked out by hand.
 #include "core/metrics.hpp"
 
 #include <gtest/gtest.h>

@@ -2,9 +2,11 @@
 // map over loopback TCP and over an RTU pty pair (socat), the client output writing to a
 // libmodbus slave that goes away and comes back, and the server under garbage and load.
 #include "fixture_paths.hpp"
-#include "firmware_app/model_files.hpp"
-#include "firmware_app/modbus_output.hpp"
-#include "firmware_app/pipeline.hpp"
+#include "firmware_app/config/model_files.hpp"
+#include "drivers/clock.hpp"
+#include "firmware_app/outputs/modbus_client_output.hpp"
+#include "firmware_app/outputs/modbus_server_output.hpp"
+#include "firmware_app/daemon/pipeline.hpp"
 #include "serial_peers.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
@@ -143,12 +145,15 @@ void check_register_map(modbus_t* master, ModbusServerOutput& output, DriveContr
 
   write_holding(master, map::kRecord, 1);
   EXPECT_EQ(control.recording_request, 1);
-  EXPECT_EQ(read_holding(master, map::kRecord), 0) << "not recording until the daemon says so";
-  control.daemon_status = kStatusRecording;
+  EXPECT_EQ(read_holding(master, map::kRecord), 0) << "not recording until the status word says so";
+  DriveFrame recording = frame_with(0x1'2346, 412.6, 70000);
+  recording.status |= kStatusRecording;
+  output.publish(recording);
   EXPECT_EQ(read_holding(master, map::kRecord), 1);
   write_holding(master, map::kRecord, 0);
   EXPECT_EQ(control.recording_request, 0);
-  control.daemon_status = 0;
+  output.publish(frame_with(0x1'2347, 412.6, 70000));
+  EXPECT_EQ(read_holding(master, map::kRecord), 0);
 
   EXPECT_EQ(read_holding(master, map::kFirstOverride + 1), map::kNoOverride);
   const std::uint16_t both[] = {250, 1800};
@@ -186,7 +191,7 @@ TEST(ModbusServer, RtuServesTheSameMapOverASerialLine) {
   auto pty = std::make_unique<test::PtyPair>(dir.path());
   const test::PtyPair& line = *pty;
   ModbusServerOptions options;
-  options.link.transport = ModbusLinkOptions::Transport::kRtu;
+  options.link.transport = ModbusEndpoint::Transport::kRtu;
   options.link.line.device = line.a;
   options.link.line.baud = 115200;
   options.link.line.rs485 = true;  // a pty cannot do RS-485: logged, not fatal

@@ -1,7 +1,7 @@
 // PCA model builder (core/model_builder) and `lipdrive model build | info`.
 #include "core/model_builder.hpp"
-#include "firmware_app/command_error.hpp"
-#include "firmware_app/model_files.hpp"
+#include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "sim/synthetic_head.hpp"
 
 #include <Eigen/QR>

@@ -1,4 +1,4 @@
-// Mouth measures (DESIGN.md 4.4) on hand-made landmarks with hand-computed answers.
+// Mouth measures (docs/method.md 4) on hand-made landmarks with hand-computed answers.
 #include "core/mouth_measures.hpp"
 
 #include <gtest/gtest.h>

@@ -4,10 +4,12 @@
 //
 // Allocations are counted by tests/allocation_counter.cpp on the processing thread alone.
 #include "fixture_paths.hpp"
-#include "firmware_app/latest_frame.hpp"
-#include "firmware_app/model_files.hpp"
-#include "firmware_app/pipeline.hpp"
-#include "firmware_app/take_recorder.hpp"
+#include "firmware_app/daemon/latest_frame.hpp"
+#include "firmware_app/config/model_files.hpp"
+#include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/daemon/pipeline.hpp"
+#include "firmware_app/daemon/take_recorder.hpp"
+#include "firmware_app/tables/measures_csv.hpp"
 #include "allocation_counter.hpp"
 #include "daemon_process.hpp"
 #include "shared_predictor.hpp"
@@ -367,10 +369,47 @@ TEST_F(PipelineTest, SideCameraMeasuresProtrusionAndTheFrontCarriesOnWithoutIt) 
   EXPECT_GT(side_back, 5) << "the side camera was used again once it was back";
 }
 
+TEST_F(PipelineTest, ACalibrateRequestRecentresTheProfileOnTheProcessingThread) {
+  PipelineSettings settings;
+  settings.neutral_frames = 10;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings);
+  // A profile from someone else's face: its rest is far from what the clip's mouth shows.
+  PerformerProfile before;
+  before.rest = {0.6, 2.2, 0.3};
+  before.open = {0.6, 1.0};
+  before.width = {2.0, 2.6};
+  before.protrusion = {0.3, 0.5};
+  pipeline.set_profile(before);
+  RecordingOutput output;
+  pipeline.add_output(output);
+  pipeline.start();
+  wait_for([&] { return pipeline.stats().tracked >= 5; }, 60s);
+  PerformerProfile after;
+  EXPECT_EQ(pipeline.recentred_profile(after), 0u) << "nothing re-centred before a request";
+  EXPECT_FALSE(output.last.status & kStatusCalibrated);
+
+  pipeline.control().calibrate_requests.fetch_add(1);
+  wait_for([&] { return pipeline.recentred_profile(after) > 0; }, 60s);
+  const std::uint64_t tracked_at_recentre = pipeline.stats().tracked;
+  wait_for([&] { return (output.last.status & kStatusCalibrated) != 0; }, 5s);
+  pipeline.stop();
+
+  ASSERT_EQ(pipeline.recentred_profile(after), 1u) << "one request, one re-centred profile";
+  EXPECT_GE(tracked_at_recentre, 5u + 10u) << "captured on the tracked frames after the request";
+  // The clip's mouth at rest is far below 0.6 of d, and each range moved with the rest point.
+  EXPECT_LT(after.rest.open, 0.4);
+  EXPECT_NEAR(after.open.min, after.rest.open, 1e-12);
+  EXPECT_NEAR(after.open.max - after.open.min, 0.4, 1e-9);
+  EXPECT_NEAR(after.width.max - after.width.min, 0.6, 1e-9);
+  EXPECT_NEAR(after.width.min - before.width.min, after.rest.width - before.rest.width, 1e-9);
+  EXPECT_TRUE(after.calibrated);
+  EXPECT_TRUE(output.last.status & kStatusCalibrated) << "the status word reports the profile in use";
+}
+
 TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
   Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
   TakeRecorder recorder("clip", 50ms);
-  pipeline.add_sink(recorder);
+  pipeline.set_recorder(recorder);
   RecordingOutput output;
   pipeline.add_output(output);
   // Every write to /dev/full fails with ENOSPC.
@@ -511,6 +550,30 @@ TEST_F(RunTest, RecordWritesCompleteLinesWithTheProcessColumns) {
   EXPECT_GE(rows, 50);
   EXPECT_GT(tracked, rows * 9 / 10);
   EXPECT_TRUE(ordered) << "rows in capture order";
+}
+
+TEST_F(RunTest, Sigusr1RecalibratesTheNeutralAndSavesTheProfile) {
+  PerformerProfile profile;
+  profile.rest = {0.6, 2.2, 0.3};
+  profile.open = {0.6, 1.0};
+  save_profile(dir_ / "alex.toml", "alex", profile);
+  write_config("real_time = true", 0,
+               fmt::format("[performer]\nname = \"alex\"\nprofiles_dir = \"{}\"\nneutral_frames = 10", dir_.string()));
+  test::DaemonProcess daemon(config_, dir_ / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
+  daemon.signal(SIGUSR1);
+  ASSERT_TRUE(daemon.wait_for_log("calibrated neutral")) << daemon.log();
+  // The main thread saves the profile after the processing thread applied it.
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  PerformerProfile saved = load_profile(dir_ / "alex.toml");
+  while (saved.rest.open == 0.6 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(50ms);
+    saved = load_profile(dir_ / "alex.toml");
+  }
+  EXPECT_LT(saved.rest.open, 0.4) << daemon.log();
+  EXPECT_NEAR(saved.open.max - saved.open.min, 0.4, 1e-6);
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(2000ms), 0) << daemon.log();
 }
 
 TEST_F(RunTest, TellsSystemdReadyStatusAndFeedsTheWatchdog) {

@@ -1,7 +1,7 @@
 // Acceptance tests of `lipdrive process`: accuracy on the generated talking face, lip
 // closures on real GRID speech, and bad input that must fail cleanly.
 #include "core/metrics.hpp"
-#include "firmware_app/csv_table.hpp"
+#include "firmware_app/tables/csv_table.hpp"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -95,6 +95,39 @@ TEST_F(ProcessTest, GeneratedTalkingFaceFollowsItsTruth) {
     RecordProperty(std::string(column) + "_rmse_scaled_r", fmt::format("{:.3f} {:.3f}", a.rmse_scaled, a.pearson_r));
     EXPECT_LE(a.rmse_scaled, 0.10) << column;
   }
+}
+
+std::string file_text(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// `process --config` builds the tracker and the fit from the daemon's file, through the
+// daemon's factory: the file's settings change the output exactly as they change the rig's.
+TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
+  const fs::path video = kFixtureDir / "talking_face.avi";
+  if (!fs::exists(video)) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  const auto process_with = [&](const std::string& name, const std::string& model_table) {
+    const fs::path config = dir_ / (name + ".toml"), out = dir_ / (name + ".csv");
+    std::ofstream(config) << "[model]\n" << model_table;
+    const ProcessRun run = run_process(video.string() + " --config " + config.string() + " --out " + out.string(), dir_);
+    EXPECT_EQ(run.exit_code, 0) << run.stderr_text;
+    return file_text(out);
+  };
+  const fs::path defaults_out = dir_ / "defaults.csv";
+  ASSERT_EQ(run_process(video.string() + " --out " + defaults_out.string(), dir_).exit_code, 0);
+  const std::string defaults = file_text(defaults_out);
+  ASSERT_FALSE(defaults.empty());
+  EXPECT_EQ(process_with("same", "iterations = 3\nlandmark_set = \"F4\"\n"), defaults)
+      << "the defaults are the daemon's defaults";
+  EXPECT_NE(process_with("one_iteration", "iterations = 1\n"), defaults) << "[model] iterations reaches the fit";
+  EXPECT_NE(process_with("lips_only", "landmark_set = \"F1\"\n"), defaults) << "[model] landmark_set too";
+
+  const fs::path bad = dir_ / "bad.toml";
+  std::ofstream(bad) << "[model]\niterations = 0\n";
+  const ProcessRun run = run_process(video.string() + " --config " + bad.string(), dir_);
+  EXPECT_EQ(run.exit_code, 78) << run.stderr_text;
+  EXPECT_NE(run.stderr_text.find("key model.iterations"), std::string::npos) << run.stderr_text;
 }
 
 TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {

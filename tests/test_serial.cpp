@@ -1,9 +1,10 @@
 // The serial outputs: wire encoders against known values, and SerialOutput against real
 // peers through socat pty pairs (the output writes one end, the test reads the other and
 // decodes from the documented format, docs/serial-protocol.md and docs/maestro.md).
+#include "drivers/clock.hpp"
 #include "drivers/serial_port.hpp"
 #include "drivers/serial_protocol.hpp"
-#include "firmware_app/serial_output.hpp"
+#include "firmware_app/outputs/serial_output.hpp"
 #include "serial_peers.hpp"
 
 #include <gtest/gtest.h>

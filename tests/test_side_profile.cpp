@@ -4,7 +4,7 @@
 #include "allocation_counter.hpp"
 #include "core/metrics.hpp"
 #include "core/side_profile.hpp"
-#include "firmware_app/csv_table.hpp"
+#include "firmware_app/tables/csv_table.hpp"
 #include "sim/side_view.hpp"
 
 #include <gtest/gtest.h>
@@ -274,7 +274,7 @@ TEST(SideProfile, CalibrationNeedsACompleteProfile) {
 }
 
 // The generated fixture: every frame measured, calibrated on the opening silence (the
-// first 0.6 s are neutral), compared with the truth of the 3D shape (DESIGN.md 4.5).
+// first 0.6 s are neutral), compared with the truth of the 3D shape (docs/method.md 5).
 TEST(SideViewFixture, MeasureFollowsTheTruthOverTheClip) {
   const fs::path dir = LIPDRIVE_FIXTURE_DIR;
   const std::vector<double> truth = numeric_column(read_csv_table(dir / "side_view_truth.csv"), "protrusion_truth");
@@ -304,7 +304,7 @@ TEST(SideViewFixture, MeasureFollowsTheTruthOverTheClip) {
               *std::ranges::min_element(truth), *std::ranges::max_element(truth));
   EXPECT_EQ(a.pairs_used, static_cast<int>(truth.size()));
   EXPECT_GE(a.pearson_r, 0.95);
-  EXPECT_LE(a.rmse_scaled, 0.1);  // DESIGN.md 4.5 reference: 0.157-0.266 on real video
+  EXPECT_LE(a.rmse_scaled, 0.1);  // docs/method.md 5 reference: 0.157-0.266 on real video
   EXPECT_NEAR(a.std_ratio, 1.0, 0.15);
 }
 

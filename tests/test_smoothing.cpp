@@ -1,10 +1,10 @@
 // The shipped smoothing (config/lipdrive.toml: 1€ filter on the open/width/protrusion
 // channels) evaluated on `lipdrive process` output: it must lower frame-to-frame jitter
 // in the final silence of the GRID clips, keep the lip closures on bilabial words, and not
-// under-articulate the generated talking face (DESIGN.md 4.5 standard-deviation ratio).
+// under-articulate the generated talking face (docs/method.md 5 standard-deviation ratio).
 #include "core/metrics.hpp"
 #include "core/one_euro_filter.hpp"
-#include "firmware_app/csv_table.hpp"
+#include "firmware_app/tables/csv_table.hpp"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // and recovery of every default-model pose through a noisy fit.
 #include "allocation_counter.hpp"
 #include "core/viseme_weights.hpp"
-#include "firmware_app/model_files.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "reference_fitter.hpp"
 
 #include <Eigen/SVD>

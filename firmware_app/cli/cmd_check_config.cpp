@@ -1,0 +1,22 @@
+// `lipdrive check-config FILE`: validate a configuration file without starting anything.
+#include "firmware_app/cli/commands.hpp"
+#include "firmware_app/config/config.hpp"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <memory>
+
+namespace lipdrive {
+
+void add_check_config_command(CLI::App& app) {
+  auto file = std::make_shared<std::filesystem::path>();
+  CLI::App* check = app.add_subcommand("check-config", "Validate a configuration file without starting anything");
+  check->add_option("FILE", *file, "configuration file")->required();
+  check->callback([file] {
+    load_config(*file);
+    fmt::print("{}: ok\n", file->string());
+  });
+}
+
+}  // namespace lipdrive

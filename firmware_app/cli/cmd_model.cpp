@@ -1,0 +1,230 @@
+// `lipdrive model build | info | render`: build a morphable model from a folder of pose
+// meshes, describe a model file, and render one of its poses to a PNG.
+#include "core/model_builder.hpp"
+#include "core/model_format.hpp"
+#include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/cli/commands.hpp"
+#include "firmware_app/config/model_files.hpp"
+#include "firmware_app/config/paths.hpp"
+#include "sim/mesh_renderer.hpp"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The pose meshes of a folder: *.obj sorted by name, "neutral.obj" first so the
+// first pose (and the reference for vertex order) is the rest pose when there is one.
+std::vector<fs::path> pose_files(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw CommandError(fmt::format("{}: no such directory", dir.string()), kExitNoInput);
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(dir))
+    if (entry.is_regular_file() && entry.path().extension() == ".obj") files.push_back(entry.path());
+  if (files.size() < 2)
+    throw CommandError(fmt::format("{}: found {} .obj files, a model needs at least 2 poses", dir.string(),
+                                   files.size()),
+                       kExitNoInput);
+  std::sort(files.begin(), files.end(), [](const fs::path& a, const fs::path& b) {
+    const bool a_neutral = a.filename() == "neutral.obj", b_neutral = b.filename() == "neutral.obj";
+    if (a_neutral != b_neutral) return a_neutral;
+    return a.filename() < b.filename();
+  });
+  return files;
+}
+
+std::string one_based(const Triangle& t) { return fmt::format("{} {} {}", t[0] + 1, t[1] + 1, t[2] + 1); }
+
+// Every pose must share the reference's vertex order: PCA over meshes whose
+// vertices do not correspond would model the numbering, not the face.
+void check_same_topology(const fs::path& file, const Mesh& mesh, const fs::path& reference_file,
+                         const Mesh& reference) {
+  if (mesh.vertices.cols() != reference.vertices.cols())
+    throw CommandError(fmt::format("{}: {} vertices, but {} has {}", file.string(), mesh.vertices.cols(),
+                                   reference_file.filename().string(), reference.vertices.cols()),
+                       kExitDataError);
+  if (mesh.triangles.size() != reference.triangles.size())
+    throw CommandError(fmt::format("{}: {} triangles, but {} has {}", file.string(), mesh.triangles.size(),
+                                   reference_file.filename().string(), reference.triangles.size()),
+                       kExitDataError);
+  const auto [differs, _] = std::mismatch(mesh.triangles.begin(), mesh.triangles.end(), reference.triangles.begin());
+  if (differs != mesh.triangles.end()) {
+    const auto t = differs - mesh.triangles.begin();
+    throw CommandError(fmt::format("{}: triangle list differs from {} at face {} ({} vs {}, 1-based vertices)",
+                                   file.string(), reference_file.filename().string(), t + 1,
+                                   one_based(*differs), one_based(reference.triangles[t])),
+                       kExitDataError);
+  }
+}
+
+void check_landmarks_in_range(const fs::path& map_file, const std::array<std::int32_t, kNumLandmarks>& map,
+                              Eigen::Index vertex_count) {
+  for (int l = 0; l < kNumLandmarks; ++l)
+    if (map[l] >= vertex_count)
+      throw CommandError(fmt::format("{}: landmarks.{}: vertex {} outside the meshes' 0..{}", map_file.string(), l,
+                                     map[l], vertex_count - 1),
+                         kExitDataError);
+}
+
+// Fraction of the total variance held by each kept component.
+Eigen::VectorXd variance_fractions(const MorphableModel& model) {
+  return model.stddev.cast<double>().array().square() / double(model.total_variance);
+}
+
+struct BuildArgs {
+  fs::path poses, landmarks, out;
+  ModelBuildOptions options;
+};
+
+void run_build(const BuildArgs& args) {
+  ModelBuildInput input;
+  input.landmark_vertex = read_landmark_map(args.landmarks);
+  const auto files = pose_files(args.poses);
+  Mesh reference;
+  for (const auto& file : files) {
+    Mesh mesh = read_obj(file);
+    if (input.pose_vertices.empty()) {
+      reference = mesh;
+      input.triangles = mesh.triangles;
+    } else {
+      check_same_topology(file, mesh, files.front(), reference);
+    }
+    input.pose_names.push_back(file.stem().string());
+    input.pose_vertices.push_back(std::move(mesh.vertices));
+  }
+  check_landmarks_in_range(args.landmarks, input.landmark_vertex, reference.vertices.cols());
+
+  MorphableModel model;
+  try {
+    model = build_model(input, args.options);
+  } catch (const ModelBuildError& e) {
+    throw CommandError(fmt::format("{}: {}", args.poses.string(), e.what()), kExitDataError);
+  }
+  save_model_file(args.out, model);
+  fmt::print("{}: {} poses, {} vertices, {} components, {:.2f} % of the variance kept\n", args.out.string(),
+             model.num_poses(), model.num_vertices(), model.num_components(),
+             100 * variance_fractions(model).sum());
+}
+
+void print_info(const fs::path& file) {
+  const MorphableModel model = load_model_file(file);
+  fmt::print("file:           {}\n", file.string());
+  fmt::print("format version: {}\n", kModelFormatVersion);
+  fmt::print("vertices:       {}\n", model.num_vertices());
+  fmt::print("triangles:      {}\n", model.triangles.size());
+  fmt::print("components:     {}\n", model.num_components());
+  fmt::print("poses:          {}\n", model.num_poses());
+
+  const Eigen::VectorXd fractions = variance_fractions(model);
+  fmt::print("\n{:>9}  {:>10}  {:>12}\n", "component", "variance %", "cumulative %");
+  double cumulative = 0;
+  for (Eigen::Index k = 0; k < fractions.size(); ++k) {
+    cumulative += fractions[k];
+    fmt::print("{:>9}  {:>10.3f}  {:>12.3f}\n", k, 100 * fractions[k], 100 * cumulative);
+  }
+  fmt::print("\n");
+  for (double target : {0.90, 0.95, 0.99}) {
+    double sum = 0;
+    Eigen::Index k = 0;
+    while (k < fractions.size() && sum < target) sum += fractions[k++];
+    if (sum >= target)
+      fmt::print("{:.0f} % of the variance: {} component{}\n", 100 * target, k, k == 1 ? "" : "s");
+    else
+      fmt::print("{:.0f} % of the variance: not reached (all {} components hold {:.2f} %)\n", 100 * target, k,
+                 100 * sum);
+  }
+
+  std::vector<int> unmapped;
+  for (int l = 0; l < kNumLandmarks; ++l)
+    if (model.landmark_vertex[l] < 0) unmapped.push_back(l);
+  fmt::print("landmarks: {}/{} mapped\n", model.mapped_landmark_count(), kNumLandmarks);
+  if (!unmapped.empty()) fmt::print("unmapped:  {}\n", fmt::join(unmapped, " "));
+}
+
+struct RenderArgs {
+  fs::path model = default_model_path();
+  std::string pose = "neutral";
+  float yaw_degrees = 0;
+  int size = 640;
+  fs::path out;
+};
+
+void render(const RenderArgs& args) {
+  const MorphableModel model = load_model_file(args.model);
+  const auto pose = model.pose_index(args.pose);
+  if (!pose)
+    throw CommandError(fmt::format("{}: no pose \"{}\"; the poses are: {}", args.model.string(), args.pose,
+                                   fmt::join(model.pose_names, " ")),
+                       kExitDataError);
+  const Mesh mesh = model.mesh(model.shape(model.pose_coefficients.col(*pose)));
+  const cv::Mat image = render_mesh(mesh, RenderView{args.yaw_degrees, cv::Size(args.size, args.size)});
+  bool written = false;
+  try {
+    written = cv::imwrite(args.out.string(), image);
+  } catch (const cv::Exception& e) {
+    throw CommandError(fmt::format("{}: cannot write the image: {}", args.out.string(), e.what()));
+  }
+  if (!written) throw CommandError(fmt::format("{}: cannot write the image", args.out.string()));
+}
+
+void add_build_command(CLI::App& model) {
+  auto args = std::make_shared<BuildArgs>();
+  auto* cmd = model.add_subcommand("build", "Build a morphable model (PCA) from a folder of pose meshes");
+  cmd->add_option("--poses", args->poses, "Folder of OBJ meshes with identical vertex order, one per pose")
+      ->required();
+  cmd->add_option("--landmarks", args->landmarks, "Landmark map (TOML: [landmarks] iBUG index = vertex)")
+      ->required();
+  cmd->add_option("--out", args->out, "Model file to write (.lpm)")->required();
+  cmd->add_option("--components", args->options.components,
+                  "Number of components to keep (0 = smallest count reaching --variance)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--variance", args->options.variance_target,
+                  "Fraction of the variance to keep when --components is 0")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->callback([args] { run_build(*args); });
+}
+
+void add_info_command(CLI::App& model) {
+  auto file = std::make_shared<fs::path>(default_model_path());
+  auto* cmd = model.add_subcommand("info", "Describe a model file: sizes, variance per component, landmarks");
+  cmd->add_option("file", *file, "Model file (.lpm)")->capture_default_str();
+  cmd->callback([file] { print_info(*file); });
+}
+
+void add_render_command(CLI::App& model) {
+  auto args = std::make_shared<RenderArgs>();
+  auto* cmd = model.add_subcommand("render", "Render one pose of a model file to a PNG");
+  cmd->add_option("--model", args->model, "Model file (.lpm)")->capture_default_str();
+  cmd->add_option("--pose", args->pose, "Pose name (see `lipdrive model info`)")->capture_default_str();
+  cmd->add_option("--yaw", args->yaw_degrees, "Head rotation in degrees: 0 frontal, 90 right profile")
+      ->capture_default_str();
+  cmd->add_option("--size", args->size, "Image width and height in pixels")
+      ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  cmd->add_option("--out", args->out, "PNG file to write")->required();
+  cmd->callback([args] { render(*args); });
+}
+
+}  // namespace
+
+void add_model_command(CLI::App& app) {
+  auto* model = app.add_subcommand("model", "Build, inspect and render morphable models");
+  model->require_subcommand(1);
+  add_build_command(*model);
+  add_info_command(*model);
+  add_render_command(*model);
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,342 @@
+// `lipdrive process INPUT`: the offline pipeline over a recording (video, image or folder
+// of images): landmarks -> 3DMM fit -> mouth measures, one CSV row per frame
+// (tables/measures_csv.hpp). The tracker and the fit are built by the daemon's factory
+// (config/factories.hpp) from `--config FILE`, or from the defaults, so offline results are
+// the rig's.
+//
+// A second thread decodes ahead into a small ring of preallocated luma buffers, so decoding
+// overlaps tracking and fitting on a 2-core board; rows still come out in frame order.
+#include "core/side_profile.hpp"
+#include "core/statistics.hpp"
+#include "drivers/clock.hpp"
+#include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/cli/commands.hpp"
+#include "firmware_app/config/config.hpp"
+#include "firmware_app/config/factories.hpp"
+#include "firmware_app/config/paths.hpp"
+#include "firmware_app/daemon/frame_processor.hpp"
+#include "firmware_app/tables/measures_csv.hpp"
+#include "sim/simulated_camera.hpp"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+struct ProcessOptions {
+  std::filesystem::path input;
+  std::filesystem::path out;  // empty: stdout
+  std::filesystem::path config;  // empty: the defaults
+  // Each overrides the configuration's (or the default) when given.
+  std::filesystem::path model;
+  std::string landmark_set;
+  std::filesystem::path predictor;
+  bool include_landmarks = false;
+  bool stats = false;
+  std::filesystem::path side;          // side-camera recording, frame for frame with the input
+  std::string side_facing = "right";   // where the face looks in the side view
+  int side_neutral_frames = 15;        // its first frames: the neutral pose the reference is fixed on
+};
+
+SimulatedCamera open_input(const std::filesystem::path& input);
+
+/// The side-camera recording of a take: protrusion_side for each front frame (docs/method.md 4),
+/// the reference fixed on its first frames, which must show the performer at rest.
+class SideInput {
+ public:
+  explicit SideInput(const ProcessOptions& options)
+      : meter_(SideProfileSettings{.facing = options.side_facing == "left" ? ProfileFacing::kLeft
+                                                                            : ProfileFacing::kRight}),
+        camera_(open_input(options.side)) {
+    std::vector<cv::Mat> neutral;
+    SimulatedCamera first(open_input(options.side));
+    Frame frame;
+    for (GrabStatus status; static_cast<int>(neutral.size()) < options.side_neutral_frames &&
+                            (status = first.grab(frame, std::chrono::milliseconds(0))) != GrabStatus::kEndOfStream;) {
+      if (status == GrabStatus::kFrame) neutral.push_back(frame.gray.clone());
+    }
+    try {
+      reference_ = calibrate_side(meter_, neutral);
+    } catch (const SideCalibrationError& e) {
+      throw CommandError(fmt::format("{}: {}", options.side.string(), e.what()), kExitDataError);
+    }
+  }
+
+  /// The next side frame's protrusion; nullopt when the recording ended or the profile could
+  /// not be measured.
+  std::optional<double> next() {
+    Frame frame;
+    GrabStatus status;
+    while ((status = camera_.grab(frame, std::chrono::milliseconds(0))) == GrabStatus::kTimeout) {
+    }
+    if (status != GrabStatus::kFrame) return std::nullopt;
+    const SideMeasure measure = meter_.measure(frame.gray, reference_);
+    return measure.ok() ? std::optional(measure.protrusion) : std::nullopt;
+  }
+
+ private:
+  SideProfileMeter meter_;
+  SimulatedCamera camera_;
+  SideReference reference_;
+};
+
+/// What the decoder thread hands over, one slot of the ring.
+struct DecodedFrame {
+  enum class Kind { kFrame, kCorrupt, kEnd, kError };
+  Kind kind = Kind::kEnd;
+  cv::Mat gray;  // reused: copyTo keeps the buffer while the frame size stays the same
+  std::uint64_t sequence = 0;
+  double media_time_s = 0;
+  std::string source;
+  std::string error;  // kCorrupt, kError
+  double decode_ms = 0;
+};
+
+/// A bounded single-producer, single-consumer queue of preallocated frames. The decoder
+/// fills the slot after the last full one; the consumer reads the oldest full slot.
+class FrameRing {
+ public:
+  explicit FrameRing(std::size_t slots) : slots_(slots) {}
+
+  /// Producer: the next free slot, waiting while all are full; nullptr once closed.
+  DecodedFrame* free_slot() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return closed_ || full_ < slots_.size(); });
+    return closed_ ? nullptr : &slots_[(head_ + full_) % slots_.size()];
+  }
+  void publish() {
+    { std::lock_guard lock(mutex_); ++full_; }
+    changed_.notify_all();
+  }
+  /// Consumer: the oldest full slot, waiting while none is.
+  DecodedFrame& oldest() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return full_ > 0; });
+    return slots_[head_];
+  }
+  void release() {
+    {
+      std::lock_guard lock(mutex_);
+      head_ = (head_ + 1) % slots_.size();
+      --full_;
+    }
+    changed_.notify_all();
+  }
+  /// Consumer: stop the producer (it returns from free_slot with nullptr).
+  void close() {
+    { std::lock_guard lock(mutex_); closed_ = true; }
+    changed_.notify_all();
+  }
+
+ private:
+  std::vector<DecodedFrame> slots_;
+  std::size_t head_ = 0, full_ = 0;
+  bool closed_ = false;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+};
+
+void decode_all(SimulatedCamera& camera, FrameRing& ring) {
+  Frame frame;
+  for (;;) {
+    DecodedFrame* slot = ring.free_slot();
+    if (!slot) return;
+    const std::int64_t start = monotonic_ns();
+    try {
+      GrabStatus status;
+      do status = camera.grab(frame, std::chrono::milliseconds(1000));
+      while (status == GrabStatus::kTimeout);
+      switch (status) {
+        case GrabStatus::kFrame:
+          slot->kind = DecodedFrame::Kind::kFrame;
+          frame.gray.copyTo(slot->gray);
+          slot->sequence = frame.sequence;
+          slot->media_time_s = frame.media_time_s;
+          slot->source.assign(frame.source);
+          break;
+        case GrabStatus::kCorrupt:
+          slot->kind = DecodedFrame::Kind::kCorrupt;
+          slot->error = camera.last_error().value_or("a frame could not be decoded");
+          break;
+        default:
+          slot->kind = DecodedFrame::Kind::kEnd;
+      }
+    } catch (const std::exception& e) {
+      slot->kind = DecodedFrame::Kind::kError;
+      slot->error = e.what();
+    }
+    slot->decode_ms = ms_since(start);
+    const bool last = slot->kind == DecodedFrame::Kind::kEnd || slot->kind == DecodedFrame::Kind::kError;
+    ring.publish();
+    if (last) return;
+  }
+}
+
+/// Per-stage latencies for --stats.
+struct StageTimes {
+  std::vector<double> decode, landmarks, fit, measures;
+};
+
+void print_stats(const StageTimes& times, std::size_t frames, double seconds) {
+  fmt::print(stderr, "{:<10} {:>10} {:>10} {:>8}\n", "stage", "median ms", "p99 ms", "frames");
+  const auto line = [](const char* name, std::vector<double> v) {
+    fmt::print(stderr, "{:<10} {:>10.3f} {:>10.3f} {:>8}\n", name, median(v), quantile(v, 0.99), v.size());
+  };
+  line("decode", times.decode);
+  line("landmarks", times.landmarks);
+  line("fit", times.fit);
+  line("measures", times.measures);
+  fmt::print(stderr, "{} frames in {:.3f} s: {:.1f} frames/s (after loading)\n", frames, seconds,
+             static_cast<double>(frames) / seconds);
+}
+
+SimulatedCamera open_input(const std::filesystem::path& input) {
+  std::error_code ec;
+  if (!std::filesystem::exists(input, ec))
+    throw CommandError(fmt::format("{}: no such file or folder", input.string()), kExitNoInput);
+  if (::access(input.c_str(), R_OK | (std::filesystem::is_directory(input, ec) ? X_OK : 0)) != 0)
+    throw CommandError(fmt::format("{}: permission denied", input.string()), kExitNoInput);
+  SimulatedCameraOptions options;  // as fast as possible, no looping
+  options.input = input;
+  try {
+    return SimulatedCamera(options);
+  } catch (const SourceError& e) {
+    throw CommandError(e.what(), kExitDataError);
+  }
+}
+
+/// [model] and [tracker] of --config (or the defaults), with the options given on top.
+std::unique_ptr<FrameProcessor> processor_for(const ProcessOptions& options) {
+  Config config;  // the defaults
+  if (!options.config.empty()) config = load_config(options.config);
+  if (!options.model.empty()) config.model.file = options.model;
+  if (!options.landmark_set.empty()) config.model.landmark_set = *parse_landmark_set(options.landmark_set);
+  if (!options.predictor.empty()) config.tracker.predictor = options.predictor;
+  return make_processor(config);
+}
+
+void run_process(const ProcessOptions& options) {
+  SimulatedCamera camera = open_input(options.input);
+  const std::unique_ptr<FrameProcessor> processor = processor_for(options);
+
+  std::ofstream file;
+  if (!options.out.empty()) {
+    std::error_code ec;
+    if (options.out.has_parent_path()) std::filesystem::create_directories(options.out.parent_path(), ec);
+    file.open(options.out, std::ios::binary | std::ios::trunc);
+    if (!file) throw CommandError(fmt::format("{}: cannot open for writing", options.out.string()));
+  }
+  std::ostream& out = options.out.empty() ? std::cout : file;
+  std::optional<SideInput> side;
+  if (!options.side.empty()) side.emplace(options);
+  out << measures_csv_header(options.include_landmarks) << (side ? ",protrusion_side" : "") << '\n';
+
+  const bool progress = ::isatty(STDERR_FILENO) == 1;
+  StageTimes times;
+  std::size_t rows = 0, tracked_rows = 0;
+  std::optional<std::string> decode_error;
+  fmt::memory_buffer row;
+
+  const std::int64_t start = monotonic_ns();
+  FrameRing ring(4);
+  std::thread decoder(decode_all, std::ref(camera), std::ref(ring));
+  // Stops and joins the decoder however this scope is left.
+  const auto stop_decoder = [&](std::thread* t) { ring.close(); t->join(); };
+  const std::unique_ptr<std::thread, decltype(stop_decoder)> decoder_guard(&decoder, stop_decoder);
+
+  for (;;) {
+    DecodedFrame& frame = ring.oldest();
+    if (frame.kind == DecodedFrame::Kind::kEnd) break;
+    if (frame.kind == DecodedFrame::Kind::kError) {
+      decode_error = frame.error;
+      break;
+    }
+    if (frame.kind == DecodedFrame::Kind::kCorrupt) {
+      decode_error = frame.error;
+      ring.release();
+      continue;
+    }
+    times.decode.push_back(frame.decode_ms);
+    const FrameMeasurement& result = processor->process(frame.gray);
+    times.landmarks.push_back(result.landmarks_ms);
+    if (!std::isnan(result.fit_ms)) times.fit.push_back(result.fit_ms);
+    if (result.tracked) times.measures.push_back(result.measures_ms);
+    row.clear();
+    append_measures_csv_row(row, {frame.sequence, frame.media_time_s, frame.source},
+                            result.tracked ? &result.measures : nullptr, result.visemes,
+                            options.include_landmarks ? &result.landmarks : nullptr);
+    if (side) {
+      const std::optional<double> protrusion = side->next();
+      fmt::format_to(std::back_inserter(row), ",");
+      if (protrusion) fmt::format_to(std::back_inserter(row), "{:.5f}", *protrusion);
+    }
+    row.push_back('\n');
+    out.write(row.data(), static_cast<std::streamsize>(row.size()));
+    ++rows;
+    tracked_rows += result.tracked;
+    ring.release();
+    if (progress && rows % 10 == 0)
+      fmt::print(stderr, "\r{} frames, {} tracked, {:.0f} frames/s ", rows, tracked_rows,
+                 static_cast<double>(rows) / (ms_since(start) / 1000));
+  }
+  const double seconds = ms_since(start) / 1000;
+  if (progress) fmt::print(stderr, "\r{} frames, {} tracked{:20}\n", rows, tracked_rows, "");
+  out.flush();
+  if (!out) throw CommandError(fmt::format("{}: write failed", options.out.empty() ? "stdout" : options.out.string()));
+  if (options.stats) print_stats(times, rows, seconds);
+
+  const std::string input = options.input.string();
+  if (decode_error)
+    throw CommandError(fmt::format("{}: decoding failed after {} frames: {}", input, rows, *decode_error),
+                       kExitDataError);
+  if (rows == 0) throw CommandError(fmt::format("{}: no frames to process", input), kExitDataError);
+  if (tracked_rows == 0)
+    throw CommandError(fmt::format("{}: no face found in any of the {} frames", input, rows), kExitDataError);
+}
+
+}  // namespace
+
+void add_process_command(CLI::App& app) {
+  auto options = std::make_shared<ProcessOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "process", "Landmarks, 3DMM fit and mouth measures for every frame of a video, image or folder of images");
+  cmd->add_option("INPUT", options->input, "video file, image, or folder of images")->required();
+  cmd->add_option("--out", options->out, "CSV output file (default: stdout)");
+  cmd->add_option("--config", options->config,
+                  "the daemon's configuration file: [model] and [tracker] settings (default: the built-in defaults)");
+  cmd->add_option("--model", options->model, "morphable model (.lpm; default: [model] file, else the built-in model)");
+  cmd->add_option("--landmark-set", options->landmark_set,
+                  "landmarks used by the fit (docs/method.md; default: [model] landmark_set, else F4)")
+      ->check(CLI::IsMember(std::vector<std::string>(kLandmarkSetNames.begin(), kLandmarkSetNames.end())));
+  cmd->add_option("--predictor", options->predictor,
+                  fmt::format("dlib 68-point shape predictor (.dat; default: [tracker] predictor, else {})",
+                              kDefaultPredictorPath));
+  cmd->add_flag("--include-landmarks", options->include_landmarks, "add the tracked landmarks x0..x67,y0..y67");
+  cmd->add_flag("--stats", options->stats, "print per-stage latency and frames per second on stderr");
+  cmd->add_option("--side", options->side, "side-camera recording of the same take: adds protrusion_side");
+  cmd->add_option("--side-facing", options->side_facing, "where the face looks in the side view")
+      ->check(CLI::IsMember({"right", "left"}))
+      ->capture_default_str();
+  cmd->add_option("--side-neutral-frames", options->side_neutral_frames,
+                  "first side frames at rest that fix the reference line")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  cmd->callback([options] { run_process(*options); });
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,438 @@
+#include "firmware_app/config/config.hpp"
+
+#include "drivers/serial_port.hpp"
+#include "firmware_app/config/paths.hpp"
+#include "firmware_app/config/performer_profile.hpp"
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <initializer_list>
+#include <span>
+#include <string_view>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string_view describe_type(const toml::node& node) {
+  switch (node.type()) {
+    case toml::node_type::string: return "a string";
+    case toml::node_type::integer: return "an integer";
+    case toml::node_type::floating_point: return "a number";
+    case toml::node_type::boolean: return "a boolean";
+    case toml::node_type::table: return "a table";
+    case toml::node_type::array: return "an array";
+    default: return "a date or time";
+  }
+}
+
+/// One table of the file: typed, range-checked reads that remember which keys were read,
+/// so that whatever is left over afterwards is an unknown key.
+class Section {
+ public:
+  Section(std::string file, const toml::table* table, std::string name)
+      : file_(std::move(file)), table_(table), name_(std::move(name)) {}
+
+  [[noreturn]] void fail(std::string_view key, std::string_view reason) const {
+    throw ConfigError(fmt::format("{}: key {}: {}", file_, key_path(key), reason));
+  }
+
+  std::string string(std::string_view key, std::string fallback) {
+    const toml::node* node = find(key);
+    if (!node) return fallback;
+    if (const auto value = node->value_exact<std::string>()) return *value;
+    fail(key, fmt::format("must be a string, got {}", describe_type(*node)));
+  }
+
+  bool boolean(std::string_view key, bool fallback) {
+    const toml::node* node = find(key);
+    if (!node) return fallback;
+    if (const auto value = node->value_exact<bool>()) return *value;
+    fail(key, fmt::format("must be true or false, got {}", describe_type(*node)));
+  }
+
+  double number(std::string_view key, double fallback, double min, double max) {
+    const toml::node* node = find(key);
+    if (!node) return fallback;
+    const auto value = node->value<double>();  // integers are numbers too
+    if (!value || !(node->is_floating_point() || node->is_integer()))
+      fail(key, fmt::format("must be a number, got {}", describe_type(*node)));
+    if (!(*value >= min && *value <= max)) fail(key, fmt::format("must be between {} and {}, got {}", min, max, *value));
+    return *value;
+  }
+
+  std::vector<std::string> strings(std::string_view key) {
+    const toml::node* node = find(key);
+    std::vector<std::string> values;
+    if (!node) return values;
+    const toml::array* array = node->as_array();
+    if (!array) fail(key, fmt::format("must be an array of strings, got {}", describe_type(*node)));
+    for (const toml::node& element : *array) {
+      const auto value = element.value_exact<std::string>();
+      if (!value) fail(key, fmt::format("must be an array of strings, has {}", describe_type(element)));
+      values.push_back(*value);
+    }
+    return values;
+  }
+
+  int integer(std::string_view key, int fallback, int min, int max) {
+    const toml::node* node = find(key);
+    if (!node) return fallback;
+    const auto value = node->value_exact<std::int64_t>();
+    if (!value) fail(key, fmt::format("must be an integer, got {}", describe_type(*node)));
+    if (*value < min || *value > max) fail(key, fmt::format("must be between {} and {}, got {}", min, max, *value));
+    return static_cast<int>(*value);
+  }
+
+  std::string one_of(std::string_view key, std::string fallback, std::initializer_list<std::string_view> choices) {
+    return one_of(key, std::move(fallback), std::span(choices.begin(), choices.size()));
+  }
+  std::string one_of(std::string_view key, std::string fallback, std::span<const std::string_view> choices) {
+    std::string value = string(key, std::move(fallback));
+    if (std::ranges::find(choices, value) == choices.end())
+      fail(key, fmt::format("must be one of {}, got \"{}\"", fmt::join(choices, ", "), value));
+    return value;
+  }
+
+  /// A sub-table; absent means all defaults.
+  Section table(std::string_view key) {
+    const toml::node* node = find(key);
+    if (node && !node->is_table()) fail(key, fmt::format("must be a table, got {}", describe_type(*node)));
+    return Section(file_, node ? node->as_table() : nullptr, key_path(key));
+  }
+
+  /// An array of tables ([[key]]), each named "key[i]" in messages; absent means none.
+  std::vector<Section> tables(std::string_view key) {
+    const toml::node* node = find(key);
+    std::vector<Section> sections;
+    if (!node) return sections;
+    const toml::array* array = node->as_array();
+    if (!array || !array->is_array_of_tables())
+      fail(key, fmt::format("must be an array of tables ([[{}]]), got {}", key_path(key), describe_type(*node)));
+    for (std::size_t i = 0; i < array->size(); ++i)
+      sections.emplace_back(file_, array->get(i)->as_table(), fmt::format("{}[{}]", key_path(key), i));
+    return sections;
+  }
+
+  /// The keys of a sub-table (for tables keyed by name, like `servos = { jaw = 0 }`).
+  std::vector<std::string> keys_of(std::string_view key) const {
+    std::vector<std::string> keys;
+    const toml::node* node = table_ ? table_->get(key) : nullptr;
+    if (node && node->is_table())
+      for (const auto& [name, value] : *node->as_table()) keys.emplace_back(name.str());
+    return keys;
+  }
+
+  void reject_unknown_keys() const {
+    if (!table_) return;
+    for (const auto& [key, node] : *table_) {
+      if (std::ranges::find(read_, key.str()) == read_.end()) fail(key.str(), "unknown key");
+    }
+  }
+
+ private:
+  std::string key_path(std::string_view key) const {
+    return name_.empty() ? std::string(key) : fmt::format("{}.{}", name_, key);
+  }
+  const toml::node* find(std::string_view key) {
+    read_.emplace_back(key);
+    return table_ ? table_->get(key) : nullptr;
+  }
+
+  std::string file_;
+  const toml::table* table_;
+  std::string name_;
+  std::vector<std::string> read_;
+};
+
+/// `path` when it exists; `kind` names what it should be in the message.
+fs::path existing(Section& section, std::string_view key, const fs::path& path, std::string_view kind) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) section.fail(key, fmt::format("no such {}: {}", kind, path.string()));
+  return path;
+}
+
+void read_log(Section log, Config& config) {
+  const std::string level = log.one_of("level", "info", {"trace", "debug", "info", "warn", "error"});
+  config.log_level = spdlog::level::from_str(level);
+  log.reject_unknown_keys();
+}
+
+void read_model(Section model, Config& config) {
+  const std::string file = model.string("file", "");
+  if (!file.empty()) config.model.file = file;
+  existing(model, "file", config.model.file, "model file");
+  const std::string set =
+      model.one_of("landmark_set", std::string(landmark_set_name(config.model.landmark_set)), kLandmarkSetNames);
+  config.model.landmark_set = *parse_landmark_set(set);
+  config.model.iterations = model.integer("iterations", config.model.iterations, 1, 20);
+  model.reject_unknown_keys();
+}
+
+void read_tracker(Section tracker, Config& config) {
+  config.tracker.predictor =
+      existing(tracker, "predictor", tracker.string("predictor", config.tracker.predictor.string()), "predictor file");
+  tracker.reject_unknown_keys();
+}
+
+void read_faults(Section faults, SimulatedCameraOptions::FaultInjection& out) {
+  constexpr int kMaxFrames = 1'000'000, kMaxMs = 60'000;
+  out.drop_every = faults.integer("drop_every", 0, 0, kMaxFrames);
+  out.stall_every = faults.integer("stall_every", 0, 0, kMaxFrames);
+  out.stall = std::chrono::milliseconds(faults.integer("stall_ms", 0, 0, kMaxMs));
+  out.disconnect_after = faults.integer("disconnect_after", 0, 0, kMaxFrames);
+  out.reconnect = std::chrono::milliseconds(faults.integer("reconnect_ms", 0, 0, kMaxMs));
+  out.corrupt_every = faults.integer("corrupt_every", 0, 0, kMaxFrames);
+  faults.reject_unknown_keys();
+}
+
+void read_camera(Section camera, Config::Camera& config_camera, bool check_devices = true) {
+  const std::string type = camera.one_of("type", "sim", {"sim", "v4l2", "libcamera"});
+  config_camera.type = type == "sim"    ? Config::Camera::Type::kSim
+                       : type == "v4l2" ? Config::Camera::Type::kV4l2
+                                        : Config::Camera::Type::kLibcamera;
+#ifndef LIPDRIVE_HAVE_LIBCAMERA
+  if (config_camera.type == Config::Camera::Type::kLibcamera)
+    camera.fail("type", "this build has no libcamera support (configure with -DLIPDRIVE_WITH_LIBCAMERA=ON)");
+#endif
+
+  // Both cameras' keys are allowed whatever the type, so switching type is a one-line edit.
+  SimulatedCameraOptions& sim = config_camera.sim;
+  const std::string input = camera.string("input", "");
+  sim.input = input.empty() ? default_fixture_path() : fs::path(input);
+  sim.real_time = camera.boolean("real_time", true);
+  sim.loop = camera.boolean("loop", true);
+  sim.replay_rate = camera.integer("replay_fps", 0, 0, 240);
+  read_faults(camera.table("faults"), sim.faults);
+
+  V4l2Options& v4l2 = config_camera.v4l2;
+  v4l2.device = camera.string("device", "/dev/video0");
+  const std::string format = camera.string("format", "auto");
+  try {
+    v4l2.format = parse_pixel_format(format);
+  } catch (const std::invalid_argument& e) {
+    camera.fail("format", e.what());
+  }
+  v4l2.width = static_cast<unsigned>(camera.integer("width", 640, 0, 8192));
+  v4l2.height = static_cast<unsigned>(camera.integer("height", 480, 0, 8192));
+  v4l2.frame_rate = camera.integer("fps", 60, 1, 240);
+  config_camera.libcamera_id = camera.string("camera_id", "");
+  camera.reject_unknown_keys();
+
+  if (!check_devices) return;
+  if (config_camera.type == Config::Camera::Type::kSim)
+    existing(camera, "input", sim.input, "file or folder");
+  else if (config_camera.type == Config::Camera::Type::kV4l2)
+    existing(camera, "device", v4l2.device, "device");
+}
+
+/// [side_camera]: the keys of [camera], plus whether it is used and where the face looks.
+void read_side_camera(Section side, Config& config) {
+  const bool enabled = side.boolean("enabled", false);
+  const std::string facing = side.one_of("facing", "right", {"right", "left"});
+  config.side_facing = facing == "right" ? ProfileFacing::kRight : ProfileFacing::kLeft;
+  Config::Camera camera;
+  read_camera(side, camera, enabled);
+  if (enabled) config.side_camera = camera;
+}
+
+void read_recording(Section recording, Config& config) {
+  Config::Recording& r = config.recording;
+  r.dir = recording.string("dir", r.dir.string());
+  r.start = recording.boolean("start", r.start);
+  r.flush_interval_ms = recording.integer("flush_interval_ms", r.flush_interval_ms, 10, 60'000);
+  recording.reject_unknown_keys();
+}
+
+void read_status(Section status, Config& config) {
+  config.status.print_interval_ms = status.integer("print_interval_ms", config.status.print_interval_ms, 0, 3'600'000);
+  status.reject_unknown_keys();
+}
+
+void read_performer(Section performer, Config& config) {
+  Config::Performer& p = config.performer;
+  p.name = performer.string("name", "");
+  p.profiles_dir = performer.string("profiles_dir", p.profiles_dir.string());
+  p.neutral_frames = performer.integer("neutral_frames", p.neutral_frames, kMinNeutralFrames, CalibrationCapture::kCapacity);
+  performer.reject_unknown_keys();
+  if (p.name.empty()) return;
+  try {
+    existing(performer, "name", profile_path(p.profiles_dir, p.name), "performer profile (run `lipdrive calibrate`)");
+  } catch (const std::invalid_argument& e) {
+    performer.fail("name", e.what());
+  }
+}
+
+void read_safety(Section safety, Config& config) {
+  constexpr std::int64_t kNsPerMs = 1'000'000;
+  SafetySettings& s = config.safety;
+  s.hold_ns = safety.integer("hold_ms", static_cast<int>(s.hold_ns / kNsPerMs), 0, 60'000) * kNsPerMs;
+  s.ease_ns = safety.integer("ease_ms", static_cast<int>(s.ease_ns / kNsPerMs), 0, 60'000) * kNsPerMs;
+  safety.reject_unknown_keys();
+}
+
+void read_channels(std::vector<Section> channels, Config& config) {
+  if (channels.size() > kMaxChannels) {
+    Section(config.file.string(), nullptr, "").fail("channels", fmt::format("at most {} channels", kMaxChannels));
+  }
+  constexpr double kMaxOut = 65535, kMaxIn = 1e6;
+  for (Section& channel : channels) {
+    ChannelSpec spec;
+    spec.name = channel.string("name", "");
+    if (spec.name.empty()) channel.fail("name", "every channel needs a name");
+    if (find_channel(config.channels, spec.name))
+      channel.fail("name", fmt::format("\"{}\" is already a channel", spec.name));
+    const std::string signal = channel.string("signal", "open");
+    if (const auto parsed = parse_signal(signal)) {
+      spec.signal = *parsed;
+    } else {
+      channel.fail("signal", fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, viseme_<name>)",
+                                         signal));
+    }
+    spec.in_min = channel.number("in_min", 0, -kMaxIn, kMaxIn);
+    spec.in_max = channel.number("in_max", 1, -kMaxIn, kMaxIn);
+    if (spec.in_min == spec.in_max) channel.fail("in_max", "must differ from in_min");
+    spec.out_min = channel.number("out_min", 0, -kMaxOut, kMaxOut);
+    spec.out_max = channel.number("out_max", 1000, -kMaxOut, kMaxOut);
+    spec.neutral = channel.number("neutral", spec.out_min, -kMaxOut, kMaxOut);
+    if (spec.neutral < std::min(spec.out_min, spec.out_max) || spec.neutral > std::max(spec.out_min, spec.out_max))
+      channel.fail("neutral", fmt::format("must lie between out_min {} and out_max {}", spec.out_min, spec.out_max));
+    spec.max_slew_per_s = channel.number("max_slew_per_s", 0, 0, 1e9);
+    spec.invert = channel.boolean("invert", false);
+    Section smoothing = channel.table("smoothing");
+    spec.smoothed = channel.keys_of("smoothing").size() > 0;
+    spec.smoothing.min_cutoff_hz = smoothing.number("min_cutoff_hz", 1.0, 0.01, 1000);
+    spec.smoothing.beta = smoothing.number("beta", 0.0, 0, 1e6);
+    spec.smoothing.d_cutoff_hz = smoothing.number("d_cutoff_hz", 1.0, 0.01, 1000);
+    smoothing.reject_unknown_keys();
+    channel.reject_unknown_keys();
+    config.channels.push_back(std::move(spec));
+  }
+}
+
+/// Channel names an output refers to must exist.
+void check_channel_names(Section& output, std::string_view key, const std::vector<std::string>& names,
+                         const Config& config) {
+  for (const std::string& name : names) {
+    if (!find_channel(config.channels, name))
+      output.fail(key, fmt::format("no channel named \"{}\" (see [[channels]])", name));
+  }
+}
+
+SerialPortSettings read_serial_line(Section& section, std::string_view default_device) {
+  SerialPortSettings line;
+  line.device = section.string("device", std::string(default_device));
+  line.baud = section.integer("baud", line.baud, 50, 4'000'000);
+  line.parity = section.one_of("parity", std::string(1, line.parity), {"N", "E", "O"})[0];
+  line.data_bits = section.integer("data_bits", line.data_bits, 5, 8);
+  line.stop_bits = section.integer("stop_bits", line.stop_bits, 1, 2);
+  line.rs485 = section.boolean("rs485", line.rs485);
+  try {
+    validate_serial_settings(line);
+  } catch (const std::invalid_argument& e) {
+    section.fail("baud", e.what());
+  }
+  return line;
+}
+
+ModbusEndpoint read_modbus_link(Section& section) {
+  ModbusEndpoint link;
+  link.transport = section.one_of("transport", "tcp", {"tcp", "rtu"}) == "tcp" ? ModbusEndpoint::Transport::kTcp
+                                                                              : ModbusEndpoint::Transport::kRtu;
+  link.address = section.string("address", link.address);
+  link.port = section.integer("port", link.port, 1, 65535);
+  link.line = read_serial_line(section, kDefaultRtuDevice);
+  link.unit_id = section.integer("unit_id", link.unit_id, 1, 247);
+  return link;
+}
+
+void read_outputs(Section outputs, Config& config) {
+  for (Section& server : outputs.tables("modbus_server")) {
+    ModbusServerOptions options;
+    options.link = read_modbus_link(server);
+    options.max_clients = server.integer("max_clients", options.max_clients, 1, 64);
+    server.reject_unknown_keys();
+    config.outputs.modbus_servers.push_back(options);
+  }
+  for (Section& client : outputs.tables("modbus_client")) {
+    ModbusClientOptions options;
+    options.link = read_modbus_link(client);
+    options.channels = client.strings("channels");
+    check_channel_names(client, "channels", options.channels, config);
+    options.first_register = client.integer("first_register", options.first_register, 0, 65535);
+    options.rate_hz = client.integer("rate_hz", options.rate_hz, 1, 1000);
+    options.timeout_ms = client.integer("timeout_ms", options.timeout_ms, 1, 10'000);
+    options.max_backoff_ms = client.integer("max_backoff_ms", options.max_backoff_ms, 10, 600'000);
+    client.reject_unknown_keys();
+    config.outputs.modbus_clients.push_back(options);
+  }
+  for (Section& serial : outputs.tables("serial")) {
+    SerialOutputOptions options;
+    const std::string mode = serial.one_of("mode", "framed", {"framed", "line", "maestro"});
+    options.mode = mode == "framed" ? SerialOutputOptions::Mode::kFramed
+                   : mode == "line" ? SerialOutputOptions::Mode::kLine
+                                    : SerialOutputOptions::Mode::kMaestro;
+    options.line = read_serial_line(serial, kDefaultSerialDevice);
+    options.channels = serial.strings("channels");
+    check_channel_names(serial, "channels", options.channels, config);
+    Section servos = serial.table("servos");
+    for (const std::string& channel : serial.keys_of("servos")) {
+      options.servos.push_back({channel, servos.integer(channel, 0, 0, 23)});
+      check_channel_names(servos, channel, {channel}, config);
+    }
+    if (options.mode == SerialOutputOptions::Mode::kMaestro && options.servos.empty())
+      serial.fail("servos", "maestro mode needs servos = { <channel> = <servo number>, ... }");
+    options.max_backoff_ms = serial.integer("max_backoff_ms", options.max_backoff_ms, 10, 600'000);
+    serial.reject_unknown_keys();
+    config.outputs.serial.push_back(options);
+  }
+  Section gpio = outputs.table("gpio");
+  GpioOptions& g = config.outputs.gpio;
+  g.enabled = gpio.boolean("enabled", g.enabled);
+  g.chip = gpio.string("chip", g.chip);
+  g.status_line = gpio.string("status_line", "");
+  g.fault_line = gpio.string("fault_line", "");
+  g.calibrate_button = gpio.string("calibrate_button", "");
+  g.record_button = gpio.string("record_button", "");
+  g.buttons_active_low = gpio.boolean("buttons_active_low", g.buttons_active_low);
+  g.debounce_ms = gpio.integer("debounce_ms", g.debounce_ms, 0, 1000);
+  gpio.reject_unknown_keys();
+  outputs.reject_unknown_keys();
+}
+
+}  // namespace
+
+Config load_config(const fs::path& file) {
+  const std::string name = file.string();
+  toml::table root;
+  try {
+    root = toml::parse_file(name);
+  } catch (const toml::parse_error& e) {
+    const auto& where = e.source().begin;
+    if (where.line == 0) throw ConfigError(fmt::format("{}: cannot read the file: {}", name, e.description()));
+    throw ConfigError(fmt::format("{}:{}:{}: {}", name, where.line, where.column, e.description()));
+  }
+  Config config;
+  config.file = file;
+  Section top(name, &root, "");
+  read_log(top.table("log"), config);
+  read_model(top.table("model"), config);
+  read_tracker(top.table("tracker"), config);
+  read_camera(top.table("camera"), config.camera);
+  read_side_camera(top.table("side_camera"), config);
+  read_recording(top.table("recording"), config);
+  read_status(top.table("status"), config);
+  read_performer(top.table("performer"), config);
+  read_safety(top.table("safety"), config);
+  read_channels(top.tables("channels"), config);
+  read_outputs(top.table("outputs"), config);
+  top.reject_unknown_keys();
+  return config;
+}
+
+}  // namespace lipdrive

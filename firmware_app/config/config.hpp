@@ -1,0 +1,137 @@
+// The daemon's configuration file (TOML; config/lipdrive.toml is the documented reference).
+//
+// Everything is validated when the file is loaded, before anything starts: unknown keys,
+// wrong types, out-of-range values and missing files (model, predictor, sim input, v4l2
+// device) all throw ConfigError, so a typo never silently falls back to a default.
+#pragma once
+
+#include "core/drive_channels.hpp"
+#include "core/fitting.hpp"
+#include "core/landmarks.hpp"
+#include "core/side_profile.hpp"
+#include "drivers/modbus_link.hpp"
+#include "drivers/serial_port.hpp"
+#include "drivers/v4l2_camera.hpp"
+#include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/paths.hpp"
+#include "sim/simulated_camera.hpp"
+
+#include <spdlog/common.h>
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace lipdrive {
+
+/// "FILE: key KEY: reason"; exits with kExitConfig.
+class ConfigError : public CommandError {
+ public:
+  explicit ConfigError(const std::string& message) : CommandError(message, kExitConfig) {}
+};
+
+/// The serial device a table names when it names none: Modbus RTU adapters are usually
+/// USB-RS-485 (ttyUSB), serial outputs microcontroller boards (USB CDC, ttyACM).
+inline constexpr const char* kDefaultRtuDevice = "/dev/ttyUSB0";
+inline constexpr const char* kDefaultSerialDevice = "/dev/ttyACM0";
+
+/// [[outputs.modbus_server]]: serves the register map (docs/modbus-register-map.md).
+struct ModbusServerOptions {
+  ModbusEndpoint link;  // TCP address and port, or RTU over a serial line
+  int max_clients = 8;  // tcp: connections served at once
+};
+
+/// [[outputs.modbus_client]]: writes channels to holding registers of a remote slave.
+struct ModbusClientOptions {
+  ModbusEndpoint link;
+  std::vector<std::string> channels;  // written in this order from first_register; empty = all
+  int first_register = 0;
+  int rate_hz = 50;        // writes per second at most
+  int timeout_ms = 100;    // per request
+  int max_backoff_ms = 5000;  // reconnect delay doubles up to this after failures
+};
+
+/// [[outputs.serial]]: channel values over a serial line (docs/serial-protocol.md).
+struct SerialOutputOptions {
+  enum class Mode { kFramed, kLine, kMaestro };
+  Mode mode = Mode::kFramed;
+  SerialPortSettings line;            // the line (USB CDC, RS-232/RS-485 adapter, pty)
+  std::vector<std::string> channels;  // framed and line: sent in this order; empty = all
+  /// maestro: Maestro servo number for each channel (channel values are in microseconds).
+  struct Servo {
+    std::string channel;
+    int servo = 0;  // 0..23
+  };
+  std::vector<Servo> servos;
+  int max_backoff_ms = 5000;  // reopen delay doubles up to this while the port is gone
+};
+
+/// [outputs.gpio]: status and fault lines, calibrate and record buttons (libgpiod).
+struct GpioOptions {
+  bool enabled = false;
+  std::string chip = "gpiochip0";  // name or path
+  /// A line by offset ("17") or by name ("GPIO17"); "" = not used.
+  std::string status_line, fault_line, calibrate_button, record_button;
+  bool buttons_active_low = true;  // buttons pull the line to ground
+  int debounce_ms = 30;
+};
+
+struct Config {
+  std::filesystem::path file;  // where it was loaded from, for messages
+
+  spdlog::level::level_enum log_level = spdlog::level::info;
+
+  struct Model {
+    std::filesystem::path file = default_model_path();
+    LandmarkSet landmark_set = kDefaultLandmarkSet;
+    int iterations = FitSettings{}.iterations;
+  } model;
+
+  struct Tracker {
+    std::filesystem::path predictor = kDefaultPredictorPath;
+  } tracker;
+
+  struct Camera {
+    enum class Type { kSim, kV4l2, kLibcamera };
+    Type type = Type::kSim;
+    SimulatedCameraOptions sim;  // input resolved: never empty
+    V4l2Options v4l2;
+    std::string libcamera_id;    // "" = the first camera; size and rate as for v4l2
+  } camera;
+
+  std::optional<Camera> side_camera;  // [side_camera] when enabled
+  ProfileFacing side_facing = ProfileFacing::kRight;
+
+  struct Recording {
+    std::filesystem::path dir = "/var/lib/lipdrive/takes";
+    bool start = false;
+    int flush_interval_ms = 500;
+  } recording;
+
+  struct Status {
+    int print_interval_ms = 1000;  // 0 = off
+  } status;
+
+  struct Performer {
+    std::string name;                     // "" = uncalibrated defaults
+    std::filesystem::path profiles_dir = "/var/lib/lipdrive/profiles";  // <profiles_dir>/<name>.toml
+    int neutral_frames = 30;              // tracked frames of a neutral capture
+  } performer;
+
+  SafetySettings safety;
+  std::vector<ChannelSpec> channels;
+
+  struct Outputs {
+    std::vector<ModbusServerOptions> modbus_servers;
+    std::vector<ModbusClientOptions> modbus_clients;
+    std::vector<SerialOutputOptions> serial;
+    GpioOptions gpio;
+  } outputs;
+};
+
+/// Reads and validates a configuration file. Throws ConfigError naming the file, the key
+/// and the reason.
+Config load_config(const std::filesystem::path& file);
+
+}  // namespace lipdrive

@@ -1,0 +1,60 @@
+#include "firmware_app/config/factories.hpp"
+
+#include "drivers/v4l2_camera.hpp"
+#ifdef LIPDRIVE_HAVE_LIBCAMERA
+#include "drivers/libcamera_camera.hpp"
+#endif
+#include "firmware_app/config/model_files.hpp"
+#include "firmware_app/config/predictor_file.hpp"
+#include "sim/simulated_camera.hpp"
+
+#include <fmt/format.h>
+
+namespace lipdrive {
+
+namespace {
+
+/// The camera of one configuration table ("camera" or "side_camera", for messages).
+std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Config& config, std::string_view table) {
+  if (camera.type == Config::Camera::Type::kV4l2) return std::make_unique<V4l2Camera>(camera.v4l2);
+#ifdef LIPDRIVE_HAVE_LIBCAMERA
+  if (camera.type == Config::Camera::Type::kLibcamera) {
+    const V4l2Options& format = camera.v4l2;
+    try {
+      return std::make_unique<LibcameraCamera>(
+          LibcameraOptions{camera.libcamera_id, format.width, format.height, format.frame_rate});
+    } catch (const SourceError& e) {
+      throw ConfigError(fmt::format("{}: key {}.type: {}", config.file.string(), table, e.what()));
+    }
+  }
+#endif
+  try {
+    return std::make_unique<SimulatedCamera>(camera.sim);
+  } catch (const SourceError& e) {
+    throw ConfigError(fmt::format("{}: key {}.input: {}", config.file.string(), table, e.what()));
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<FrameSource> make_source(const Config& config) { return make_camera(config.camera, config, "camera"); }
+
+std::unique_ptr<SideCamera> make_side_camera(const Config& config) {
+  if (!config.side_camera) return nullptr;
+  return std::make_unique<SideCamera>(make_camera(*config.side_camera, config, "side_camera"),
+                                      SideProfileSettings{.facing = config.side_facing},
+                                      config.performer.neutral_frames);
+}
+
+std::unique_ptr<FrameProcessor> make_processor(const Config::Model& model, const Config::Tracker& tracker) {
+  const MorphableModel loaded = load_model_file(model.file);
+  FitSettings fit;
+  fit.iterations = model.iterations;
+  try {
+    return std::make_unique<FrameProcessor>(loaded, model.landmark_set, fit, load_predictor_file(tracker.predictor));
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
+  }
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,28 @@
+// The parts of the pipeline a configuration describes: the one place that builds cameras and
+// the per-frame processor, for `lipdrive run`, `lipdrive calibrate` and `lipdrive process`
+// alike, so that offline results and the rig's come from the same settings.
+#pragma once
+
+#include "drivers/frame_source.hpp"
+#include "firmware_app/config/config.hpp"
+#include "firmware_app/daemon/frame_processor.hpp"
+#include "firmware_app/daemon/side_camera.hpp"
+
+#include <memory>
+
+namespace lipdrive {
+
+/// The configured camera. A recording that cannot be opened throws ConfigError.
+std::unique_ptr<FrameSource> make_source(const Config& config);
+
+/// The [side_camera], or nullptr when it is not enabled.
+std::unique_ptr<SideCamera> make_side_camera(const Config& config);
+
+/// Model + predictor + tracker + fitter from [model] and [tracker]. Throws CommandError: a
+/// missing model or predictor (exit 66), one that is invalid or cannot be fitted (exit 65).
+std::unique_ptr<FrameProcessor> make_processor(const Config::Model& model, const Config::Tracker& tracker);
+inline std::unique_ptr<FrameProcessor> make_processor(const Config& config) {
+  return make_processor(config.model, config.tracker);
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,179 @@
+#include "firmware_app/config/model_files.hpp"
+
+#include "core/model_format.hpp"
+#include "firmware_app/cli/command_error.hpp"
+
+#include <fmt/format.h>
+#include <tiny_obj_loader.h>
+#include <toml++/toml.h>
+
+#include <charconv>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <optional>
+#include <string_view>
+#include <unistd.h>
+
+namespace lipdrive {
+namespace {
+
+// Opens an output file, creating its directory, so "--out new/dir/file" just works.
+std::ofstream open_for_writing(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw CommandError(fmt::format("{}: cannot open for writing", path.string()));
+  return out;
+}
+
+void finish_writing(std::ofstream& out, const std::filesystem::path& path) {
+  out.flush();
+  if (!out) throw CommandError(fmt::format("{}: write failed (disk full?)", path.string()));
+}
+
+std::vector<std::uint8_t> read_bytes(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw CommandError(fmt::format("{}: no such model file", path.string()), kExitNoInput);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw CommandError(fmt::format("{}: cannot open for reading", path.string()), kExitNoInput);
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw CommandError(fmt::format("{}: read error", path.string()), kExitNoInput);
+  return bytes;
+}
+
+std::optional<std::int64_t> parse_index(std::string_view text) {
+  std::int64_t value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc{} || end != text.data() + text.size()) return std::nullopt;
+  return value;
+}
+
+}  // namespace
+
+MorphableModel load_model_file(const std::filesystem::path& path) {
+  const auto bytes = read_bytes(path);
+  try {
+    return deserialize_model(bytes, path.string());
+  } catch (const ModelFormatError& e) {
+    throw CommandError(e.what(), kExitDataError);
+  }
+}
+
+void save_model_file(const std::filesystem::path& path, const MorphableModel& model) {
+  const auto bytes = serialize_model(model);
+  // The pid keeps two concurrent writers of the same model from sharing a temp file.
+  auto temp = path;
+  temp += fmt::format(".tmp{}", ::getpid());
+  {
+    auto out = open_for_writing(temp);
+    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    finish_writing(out, temp);
+  }
+  std::error_code ec;
+  std::filesystem::rename(temp, path, ec);
+  if (ec) {
+    std::filesystem::remove(temp, ec);
+    throw CommandError(fmt::format("{}: cannot replace the file: {}", path.string(), ec.message()));
+  }
+}
+
+Mesh read_obj(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw CommandError(fmt::format("{}: no such OBJ file", path.string()), kExitNoInput);
+  tinyobj::ObjReaderConfig config;
+  config.triangulate = false;  // a quad would silently change the triangle list between poses
+  config.vertex_color = false;
+  config.mtl_search_path = path.parent_path().string();
+  tinyobj::ObjReader reader;
+  if (!reader.ParseFromFile(path.string(), config))
+    throw CommandError(fmt::format("{}: invalid OBJ: {}", path.string(), reader.Error()), kExitDataError);
+
+  const auto& positions = reader.GetAttrib().vertices;
+  Mesh mesh;
+  mesh.vertices.resize(3, static_cast<Eigen::Index>(positions.size() / 3));
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    mesh.vertices.data()[i] = static_cast<float>(positions[i]);
+
+  const auto vertex_count = static_cast<std::size_t>(mesh.vertices.cols());
+  for (const auto& shape : reader.GetShapes()) {
+    const auto& faces = shape.mesh.num_face_vertices;
+    for (std::size_t f = 0; f < faces.size(); ++f) {
+      if (faces[f] != 3)
+        throw CommandError(fmt::format("{}: face {} of shape '{}' has {} vertices; only triangles are supported",
+                                       path.string(), f + 1, shape.name, faces[f]),
+                           kExitDataError);
+      Triangle t{};
+      for (int c = 0; c < 3; ++c) {
+        const int index = shape.mesh.indices[3 * f + c].vertex_index;
+        if (index < 0 || static_cast<std::size_t>(index) >= vertex_count)
+          throw CommandError(fmt::format("{}: face {} of shape '{}' refers to vertex {} of {}", path.string(),
+                                         f + 1, shape.name, index + 1, vertex_count),
+                             kExitDataError);
+        t[c] = static_cast<std::uint32_t>(index);
+      }
+      mesh.triangles.push_back(t);
+    }
+  }
+  return mesh;
+}
+
+void write_obj(const std::filesystem::path& path, const Mesh& mesh) {
+  auto out = open_for_writing(path);
+  // fmt's "{}" prints the shortest decimal that parses back to the same float.
+  for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i)
+    out << fmt::format("v {} {} {}\n", mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i));
+  for (const Triangle& t : mesh.triangles) out << fmt::format("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+  finish_writing(out, path);
+}
+
+std::array<std::int32_t, kNumLandmarks> read_landmark_map(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw CommandError(fmt::format("{}: no such landmark map", path.string()), kExitNoInput);
+  toml::table root;
+  try {
+    root = toml::parse_file(path.string());
+  } catch (const toml::parse_error& e) {
+    throw CommandError(fmt::format("{}:{}:{}: invalid TOML: {}", path.string(), e.source().begin.line,
+                                   e.source().begin.column, e.description()),
+                       kExitDataError);
+  }
+  const auto fail = [&](const std::string& key, const std::string& reason) {
+    throw CommandError(fmt::format("{}: {}: {}", path.string(), key, reason), kExitDataError);
+  };
+  for (const auto& [key, node] : root)
+    if (key.str() != "landmarks") fail(std::string(key.str()), "unknown key (expected only [landmarks])");
+  const toml::table* table = root["landmarks"].as_table();
+  if (!table) fail("landmarks", "missing [landmarks] table");
+
+  std::array<std::int32_t, kNumLandmarks> map;
+  map.fill(-1);
+  for (const auto& [key, node] : *table) {
+    const std::string name = "landmarks." + std::string(key.str());
+    const auto index = parse_index(key.str());
+    if (!index) fail(name, "unknown key (expected an iBUG landmark index 0..67)");
+    if (*index < 0 || *index >= kNumLandmarks) fail(name, "landmark index outside 0..67");
+    const auto vertex = node.value<std::int64_t>();
+    if (!node.is_integer() || !vertex) fail(name, "vertex is not an integer");
+    if (*vertex < 0) fail(name, fmt::format("negative vertex index {}", *vertex));
+    if (*vertex > std::numeric_limits<std::int32_t>::max()) fail(name, "vertex index too large");
+    map[static_cast<std::size_t>(*index)] = static_cast<std::int32_t>(*vertex);
+  }
+  return map;
+}
+
+void write_landmark_map(const std::filesystem::path& path,
+                        const std::array<std::int32_t, kNumLandmarks>& landmark_vertex) {
+  auto out = open_for_writing(path);
+  out << "# iBUG-68 landmark index -> 0-based vertex index in the pose meshes\n"
+         "# (a missing index is unmapped)\n"
+         "[landmarks]\n";
+  for (int i = 0; i < kNumLandmarks; ++i)
+    if (landmark_vertex[i] >= 0) out << fmt::format("{} = {}\n", i, landmark_vertex[i]);
+  finish_writing(out, path);
+}
+
+}  // namespace lipdrive

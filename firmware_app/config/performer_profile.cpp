@@ -1,0 +1,117 @@
+#include "firmware_app/config/performer_profile.hpp"
+
+#include "firmware_app/cli/command_error.hpp"
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <stdexcept>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kProfileVersion = 1;
+
+[[noreturn]] void malformed(const fs::path& file, std::string_view key, std::string_view reason) {
+  throw CommandError(fmt::format("{}: key {}: {}", file.string(), key, reason), kExitDataError);
+}
+
+double read_number(const toml::table& root, const fs::path& file, std::string_view table, std::string_view key) {
+  const std::string path = fmt::format("{}.{}", table, key);
+  const auto value = root.at_path(path).value<double>();
+  if (!value) malformed(file, path, "missing or not a number");
+  return *value;
+}
+
+MeasureRange read_range(const toml::table& root, const fs::path& file, std::string_view measure) {
+  return {read_number(root, file, measure, "min"), read_number(root, file, measure, "max")};
+}
+
+toml::table range_table(const MeasureRange& range) { return toml::table{{"min", range.min}, {"max", range.max}}; }
+
+}  // namespace
+
+fs::path profile_path(const fs::path& dir, const std::string& performer) {
+  const bool plain = !performer.empty() && performer[0] != '.' &&
+                     std::ranges::all_of(performer, [](char c) {
+                       return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+                     });
+  if (!plain)
+    throw std::invalid_argument(fmt::format("performer name \"{}\" must be letters, digits, '-', '_' or '.'", performer));
+  return dir / (performer + ".toml");
+}
+
+PerformerProfile load_profile(const fs::path& file) {
+  toml::table root;
+  try {
+    root = toml::parse_file(file.string());
+  } catch (const toml::parse_error& e) {
+    throw CommandError(fmt::format("{}: not a performer profile: {}", file.string(), e.description()), kExitDataError);
+  }
+  if (root["version"].value<int>() != kProfileVersion)
+    malformed(file, "version", fmt::format("must be {}", kProfileVersion));
+  PerformerProfile profile;
+  profile.rest = {read_number(root, file, "rest", "open"), read_number(root, file, "rest", "width"),
+                  read_number(root, file, "rest", "protrusion")};
+  profile.open = read_range(root, file, "open");
+  profile.width = read_range(root, file, "width");
+  profile.protrusion = read_range(root, file, "protrusion");
+  for (const auto& [name, range] : {std::pair{"open", profile.open}, {"width", profile.width},
+                                    {"protrusion", profile.protrusion}}) {
+    if (range.min == range.max) malformed(file, fmt::format("{}.max", name), "must differ from min");
+  }
+  if (root["indices"].as_table()) {
+    std::array<double, kNumFacialIndices> values{};
+    for (int i = 0; i < kNumFacialIndices; ++i)
+      values[i] = read_number(root, file, "indices", kFacialIndices[static_cast<std::size_t>(i)].name);
+    profile.face_indices = values;
+  }
+  profile.calibrated = true;
+  return profile;
+}
+
+Compatibility model_compatibility(const PerformerProfile& profile, const MorphableModel& model) {
+  if (!profile.face_indices) throw std::invalid_argument("the profile has no facial indices");
+  FacialMeasures performer;
+  performer.indices = *profile.face_indices;
+  return compatibility(performer, facial_measures(frontal_neutral_landmarks(model)));
+}
+
+void save_profile(const fs::path& file, const std::string& performer, const PerformerProfile& profile) {
+  toml::table root{
+      {"version", kProfileVersion},
+      {"performer", performer},
+      {"rest", toml::table{{"open", profile.rest.open},
+                           {"width", profile.rest.width},
+                           {"protrusion", profile.rest.protrusion}}},
+      {"open", range_table(profile.open)},
+      {"width", range_table(profile.width)},
+      {"protrusion", range_table(profile.protrusion)},
+  };
+  if (profile.face_indices) {
+    toml::table indices;
+    for (int i = 0; i < kNumFacialIndices; ++i)
+      indices.insert(kFacialIndices[static_cast<std::size_t>(i)].name, (*profile.face_indices)[static_cast<std::size_t>(i)]);
+    root.insert("indices", std::move(indices));
+  }
+  std::error_code ec;
+  if (file.has_parent_path()) fs::create_directories(file.parent_path(), ec);
+  const fs::path temporary = file.string() + ".tmp";
+  {
+    std::ofstream out(temporary);
+    out << "# lipdrive performer profile: measures in units of d (docs/method.md 4); the daemon maps\n"
+           "# each [min, max] onto [0, 1]. Written by `lipdrive calibrate` and the calibrate command.\n"
+        << root << '\n';
+    out.flush();
+    if (!out) throw CommandError(fmt::format("{}: cannot write the profile", temporary.string()), kExitFailure);
+  }
+  fs::rename(temporary, file, ec);
+  if (ec) throw CommandError(fmt::format("{}: cannot write the profile: {}", file.string(), ec.message()), kExitFailure);
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,81 @@
+#include "firmware_app/daemon/capture.hpp"
+
+#include "drivers/clock.hpp"
+
+#include <spdlog/spdlog.h>
+
+namespace lipdrive {
+
+Capture::Capture(std::unique_ptr<FrameSource> source, std::string_view role, std::string when_lost)
+    : source_(std::move(source)),
+      description_(source_->describe()),
+      name_(role.empty() ? description_ : std::string(role) + " " + description_),
+      when_lost_(std::move(when_lost)),
+      frame_rate_(source_->frame_rate()) {}
+
+Capture::~Capture() { stop(); }
+
+void Capture::start() {
+  heartbeat_ns_ = monotonic_ns();
+  thread_ = std::thread(&Capture::run, this);
+}
+
+void Capture::stop() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+CaptureCounters Capture::counters() const {
+  return {captured_.load(std::memory_order_relaxed), frames_.dropped(), disconnects_.load(std::memory_order_relaxed),
+          corrupt_.load(std::memory_order_relaxed)};
+}
+
+void Capture::run() {
+  Frame frame;
+  while (!stop_.load(std::memory_order_relaxed)) {
+    GrabStatus status;
+    try {
+      status = source_->grab(frame, kGrabTimeout);
+    } catch (const std::exception& e) {
+      spdlog::error("{}: {}; {}", name_, e.what(), when_lost_);
+      failed_.store(true, std::memory_order_release);
+      return;
+    }
+    heartbeat_ns_.store(monotonic_ns(), std::memory_order_relaxed);
+    switch (status) {
+      case GrabStatus::kFrame: {
+        CapturedFrame& slot = frames_.back();
+        frame.gray.copyTo(slot.gray);
+        slot.capture_time_ns = frame.capture_time_ns;
+        slot.sequence = frame.sequence;
+        slot.media_time_s = frame.media_time_s;
+        frames_.publish();
+        const bool was_connected = connected_.exchange(true);
+        if (captured_.fetch_add(1, std::memory_order_relaxed) == 0)
+          spdlog::info("{}: delivering frames", name_);
+        else if (!was_connected)
+          spdlog::info("{}: delivering frames again", name_);
+        break;
+      }
+      case GrabStatus::kDisconnected:
+        // Logged once per outage; the source keeps trying to reopen by itself.
+        if (connected_.exchange(false)) {
+          disconnects_.fetch_add(1, std::memory_order_relaxed);
+          spdlog::warn("{}: disconnected; {}", name_, when_lost_);
+        }
+        break;
+      case GrabStatus::kCorrupt:
+        corrupt_.fetch_add(1, std::memory_order_relaxed);
+        spdlog::debug("{}: a corrupt frame was skipped", name_);
+        break;
+      case GrabStatus::kEndOfStream:
+        spdlog::info("{}: end of the recording", name_);
+        ended_.store(true, std::memory_order_release);
+        return;
+      case GrabStatus::kTimeout:
+        break;
+    }
+  }
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,172 @@
+#include "firmware_app/daemon/daemon.hpp"
+
+#include "firmware_app/config/factories.hpp"
+#include "firmware_app/config/model_files.hpp"
+#include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/outputs/make_outputs.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
+
+#include <cstdio>
+
+namespace lipdrive {
+namespace {
+
+PerformerProfile load_performer(const Config& config) {
+  if (config.performer.name.empty()) return PerformerProfile{};
+  const PerformerProfile profile = load_profile(profile_path(config.performer.profiles_dir, config.performer.name));
+  spdlog::info("performer {}: open [{:.3f}, {:.3f}], width [{:.3f}, {:.3f}], protrusion [{:.3f}, {:.3f}]",
+               config.performer.name, profile.open.min, profile.open.max, profile.width.min, profile.width.max,
+               profile.protrusion.min, profile.protrusion.max);
+  return profile;
+}
+
+/// The performer's mouth and the model's are two vertical-mouth-height classes apart
+/// (docs/method.md 6): logged, and reported in the status word.
+bool model_mismatch(const Config& config, const PerformerProfile& profile) {
+  if (!profile.face_indices) return false;
+  const Compatibility check = model_compatibility(profile, load_model_file(config.model.file));
+  if (check.warn)
+    spdlog::warn("performer {}: vertical mouth height is {}, the model's {}: expect clearly worse lips (docs/method.md 6)",
+                 config.performer.name, index_class_name(check.performer.vertical_mouth_height),
+                 index_class_name(check.model.vertical_mouth_height));
+  return check.warn;
+}
+
+}  // namespace
+
+Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options)
+    : config_(std::move(config)), profile_(load_performer(config_)) {
+  PipelineSettings settings;
+  settings.max_frames = options.max_frames;
+  settings.watchdog_interval = options.watchdog_interval;
+  settings.channels = config_.channels;
+  settings.safety = config_.safety;
+  settings.neutral_frames = config_.performer.neutral_frames;
+  settings.model_mismatch = model_mismatch(config_, profile_);
+  std::unique_ptr<FrameSource> source = make_source(config_);
+  recorder_ = std::make_unique<TakeRecorder>(source->describe(),
+                                             std::chrono::milliseconds(config_.recording.flush_interval_ms));
+  pipeline_ = std::make_unique<Pipeline>(std::move(source), std::move(processor), settings);
+  if (auto side = make_side_camera(config_)) {
+    spdlog::info("side camera: {}", side->describe());
+    pipeline_->set_side_camera(std::move(side));
+  }
+  pipeline_->set_recorder(*recorder_);
+  pipeline_->set_profile(profile_);
+  outputs_ = make_outputs(config_, pipeline_->control());
+  for (const auto& output : outputs_) {
+    pipeline_->add_output(*output);
+    spdlog::info("output: {}", output->describe());
+  }
+  if (options.record || config_.recording.start) recorder_->start(take_file_name(config_.recording.dir));
+  pipeline_->start();
+  spdlog::info("running: {}, model {}, landmark set {}", pipeline_->describe_source(), config_.model.file.string(),
+               landmark_set_name(config_.model.landmark_set));
+}
+
+Daemon::~Daemon() {
+  // The outputs' threads write the pipeline's DriveControl: the pipeline stops first, the
+  // outputs go next, the pipeline last.
+  pipeline_->stop();
+  outputs_.clear();
+}
+
+void Daemon::poll() {
+  DriveControl& control = pipeline_->control();
+  const int record = control.recording_request.exchange(-1, std::memory_order_relaxed);
+  if (record == 1 && !recorder_->recording()) {
+    recorder_->start(take_file_name(config_.recording.dir));
+  } else if (record == 0 && recorder_->recording()) {
+    recorder_->stop();
+  }
+  PerformerProfile recentred;
+  if (const std::uint32_t version = pipeline_->recentred_profile(recentred); version != saved_profile_version_) {
+    saved_profile_version_ = version;
+    profile_ = recentred;
+    const Config::Performer& performer = config_.performer;
+    if (performer.name.empty()) return;
+    try {
+      save_profile(profile_path(performer.profiles_dir, performer.name), performer.name, profile_);
+    } catch (const std::exception& e) {
+      spdlog::error("the re-centred profile was not saved: {}", e.what());
+    }
+  }
+}
+
+void Daemon::report_status() {
+  const PipelineStats s = pipeline_->stats();
+  const double seconds = s.seconds - last_status_seconds_;
+  const double fps = seconds > 0 ? static_cast<double>(s.processed - last_status_processed_) / seconds : 0;
+  last_status_seconds_ = s.seconds;
+  last_status_processed_ = s.processed;
+  FrameResult latest;
+  pipeline_->latest(latest);
+  // While the camera is away the latest result is the last frame before it left.
+  const std::string mouth =
+      latest.tracked && s.connected
+          ? fmt::format("mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f} ({}), drive open {:.2f} width {:.2f} "
+                        "protrusion {:.2f}",
+                        latest.measures.height_fit, latest.measures.width_fit,
+                        latest.side_used ? latest.protrusion_side : latest.measures.protrusion_3d,
+                        latest.side_used ? "side camera" : "3D fit", latest.signals[Signal::kOpen],
+                        latest.signals[Signal::kWidth], latest.signals[Signal::kProtrusion])
+          : std::string("not tracked");
+  std::string failing;
+  for (const auto& output : outputs_)
+    if (!output->healthy()) failing += fmt::format(", {} failing", output->describe());
+  const std::string line = fmt::format("{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, {}, {}x{}, dropped {}{}{}",
+                                       fps, s.processed_median_ms, s.processed_p99_ms, mouth, latest.width,
+                                       latest.height, s.dropped, s.connected ? "" : ", camera disconnected", failing);
+  spdlog::info("{}", line);
+  sd_notifyf(0, "STATUS=%s", line.c_str());
+}
+
+void Daemon::print_stats() const {
+  const PipelineStats s = pipeline_->stats();
+  fmt::print(stderr,
+             "frames: captured {}, processed {}, tracked {}, dropped {}, corrupt {}, lost track {}, "
+             "disconnects {}\n",
+             s.captured, s.processed, s.tracked, s.dropped, s.corrupt, s.lost_track, s.disconnects);
+  fmt::print(stderr, "capture->processed latency: median {:.2f} ms, p99 {:.2f} ms\n", s.processed_median_ms,
+             s.processed_p99_ms);
+  fmt::print(stderr, "capture->output latency: median {:.2f} ms, p99 {:.2f} ms\n", s.output_median_ms,
+             s.output_p99_ms);
+  for (const auto& output : outputs_) {
+    if (const LatencyHistogram* wire = output->wire_latency(); wire && wire->count() > 0)
+      fmt::print(stderr, "capture->wire latency, {}: median {:.2f} ms, p99 {:.2f} ms ({} frames)\n", output->describe(),
+                 wire->quantile_ms(0.5), wire->quantile_ms(0.99), wire->count());
+  }
+  fmt::print(stderr, "fps: {:.1f} ({} frames in {:.2f} s)\n",
+             s.seconds > 0 ? static_cast<double>(s.processed) / s.seconds : 0.0, s.processed, s.seconds);
+}
+
+void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options) {
+  sd_notify(0, "RELOADING=1");
+  Config config;
+  std::unique_ptr<FrameProcessor> processor;
+  try {
+    config = load_config(file);
+    processor = make_processor(config);
+  } catch (const std::exception& e) {
+    spdlog::error("reload failed, keeping the running configuration: {}", e.what());
+    sd_notify(0, "READY=1");
+    return;
+  }
+  spdlog::info("{}: reloaded; restarting the pipeline", file.string());
+  Config previous = daemon->config();
+  daemon.reset();
+  try {
+    spdlog::set_level(config.log_level);
+    daemon = std::make_unique<Daemon>(std::move(config), std::move(processor), options);
+  } catch (const std::exception& e) {
+    spdlog::error("the new configuration does not start, going back to the previous one: {}", e.what());
+    spdlog::set_level(previous.log_level);
+    daemon = std::make_unique<Daemon>(previous, make_processor(previous), options);
+  }
+  sd_notify(0, "READY=1");
+}
+
+}  // namespace lipdrive

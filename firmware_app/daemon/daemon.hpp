@@ -1,0 +1,73 @@
+// The daemon `lipdrive run` holds: everything one configuration describes (the pipeline with
+// its cameras, the outputs, the take recorder, the performer's profile), built and started
+// together, replaced as a whole when the configuration is reloaded.
+//
+// Thread model: the main thread makes every call. Objects are declared in the order they are
+// needed, and the destructor stops the pipeline's threads before anything they use goes.
+#pragma once
+
+#include "firmware_app/config/config.hpp"
+#include "firmware_app/daemon/frame_processor.hpp"
+#include "firmware_app/daemon/pipeline.hpp"
+#include "firmware_app/daemon/take_recorder.hpp"
+#include "firmware_app/outputs/output.hpp"
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+namespace lipdrive {
+
+/// What `lipdrive run` adds to the configuration.
+struct DaemonOptions {
+  bool record = false;             // record a take from the start
+  std::uint64_t max_frames = 0;    // stop after this many processed frames; 0 = never
+  std::chrono::microseconds watchdog_interval{0};  // sd_notify WATCHDOG=1 this often; 0 = off
+};
+
+class Daemon {
+ public:
+  /// Builds everything `config` describes around `processor` and starts it. Throws
+  /// ConfigError or CommandError when something cannot be opened or loaded.
+  Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options);
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  /// Main thread, a few times a second: starts or stops a take when an output asked, saves a
+  /// profile the pipeline re-centred.
+  void poll();
+  /// SIGUSR1: re-capture the performer's neutral pose, like the GPIO button and the Modbus
+  /// calibrate register.
+  void request_calibration() { pipeline_->control().calibrate_requests.fetch_add(1); }
+  /// The status line: on the log and to systemd (STATUS=).
+  void report_status();
+  /// --stats: frame counts and latencies on stderr.
+  void print_stats() const;
+  /// Finishes the frame in hand, sends the neutral pose on every output, joins the threads.
+  void stop() { pipeline_->stop(); }
+
+  bool finished() const { return pipeline_->finished(); }
+  bool failed() const { return pipeline_->failed(); }
+  const Config& config() const { return config_; }
+
+ private:
+  Config config_;
+  PerformerProfile profile_;
+  std::unique_ptr<TakeRecorder> recorder_;
+  std::vector<std::unique_ptr<Output>> outputs_;
+  std::unique_ptr<Pipeline> pipeline_;  // its threads use the recorder and the outputs
+  std::uint32_t saved_profile_version_ = 0;
+  // The status line: fps over the last interval.
+  double last_status_seconds_ = 0;
+  std::uint64_t last_status_processed_ = 0;
+};
+
+/// SIGHUP: a new daemon from the re-read file. The running one stays when the file, the model
+/// or the predictor is wrong; the camera can only be opened once the old pipeline has let go
+/// of it, so if the new one does not start, the previous configuration is started again.
+void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options);
+
+}  // namespace lipdrive

@@ -1,0 +1,39 @@
+#include "firmware_app/daemon/frame_processor.hpp"
+
+#include "drivers/clock.hpp"
+
+#include <cmath>
+
+namespace lipdrive {
+
+FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
+                               std::shared_ptr<const ShapePredictorData> predictor)
+    : fitter_(model, set, settings),
+      set_(landmark_indices(set)),
+      reference_(mouth_reference(model)),
+      visemes_(make_viseme_solver(model)),
+      tracker_(std::move(predictor)) {}
+
+const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
+  FrameMeasurement& r = result_;
+  r.tracked = false;
+  r.fit_ms = r.measures_ms = std::nan("");
+  std::int64_t start = monotonic_ns();
+  const TrackStatus status = tracker_.track(gray, r.landmarks);
+  r.landmarks_ms = ms_since(start);
+  if (status == TrackStatus::kNoFace) return r;
+  // A newly acquired face may be another pose entirely: do not warm-start from the old one.
+  if (status == TrackStatus::kAcquired) fit_ = Fitter::initial_output();
+  start = monotonic_ns();
+  fitter_.fit(r.landmarks, fit_);
+  r.fit_ms = ms_since(start);
+  if (!tracker_.check_fit(r.landmarks, fit_.reprojection_error_px)) return r;
+  start = monotonic_ns();
+  r.measures = measure_mouth(r.landmarks, fit_, reference_);
+  if (visemes_) r.visemes = visemes_->solve(fit_, r.landmarks, set_);
+  r.measures_ms = ms_since(start);
+  r.tracked = true;
+  return r;
+}
+
+}  // namespace lipdrive

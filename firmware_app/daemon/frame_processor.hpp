@@ -1,0 +1,48 @@
+// The per-frame step shared by `lipdrive process`, `lipdrive calibrate` and the daemon's
+// processing thread: landmarks -> 3DMM fit -> mouth measures and viseme weights (docs/data-flow.md),
+// on fixed-size data. config/factories.hpp builds it from a configuration.
+#pragma once
+
+#include "core/face_tracker.hpp"
+#include "core/fitting.hpp"
+#include "core/mouth_measures.hpp"
+#include "core/viseme_weights.hpp"
+
+#include <opencv2/core/mat.hpp>
+
+#include <memory>
+#include <optional>
+#include <span>
+
+namespace lipdrive {
+
+struct FrameMeasurement {
+  bool tracked = false;    // a face was tracked and the fit explains it: `measures` is valid
+  MouthMeasures measures;
+  VisemeWeights visemes{};  // valid when `tracked`; all zero when the model has no viseme poses
+  Landmarks2D landmarks;   // the tracked landmarks, valid when `tracked`
+  // Time spent in each stage (ms); NaN when the stage did not run for this frame.
+  double landmarks_ms = 0, fit_ms = 0, measures_ms = 0;
+};
+
+class FrameProcessor {
+ public:
+  /// Throws std::invalid_argument when the model cannot be fitted with `set` (see Fitter).
+  FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
+                 std::shared_ptr<const ShapePredictorData> predictor);
+
+  /// Measures one luma frame (CV_8UC1). Allocation-free while the face stays tracked
+  /// (acquiring it runs dlib's detector, which allocates).
+  const FrameMeasurement& process(const cv::Mat& gray);
+
+ private:
+  Fitter fitter_;
+  std::span<const int> set_;  // the landmarks the fit and the viseme pose match use
+  MouthReference reference_;
+  std::optional<VisemeSolver> visemes_;  // nullopt: the model lacks the viseme poses
+  FaceTracker tracker_;
+  FitOutput fit_ = Fitter::initial_output();  // warm start of the next frame
+  FrameMeasurement result_;
+};
+
+}  // namespace lipdrive

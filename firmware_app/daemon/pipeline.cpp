@@ -1,0 +1,233 @@
+#include "firmware_app/daemon/pipeline.hpp"
+
+#include "drivers/clock.hpp"
+
+#include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
+
+#include <algorithm>
+
+namespace lipdrive {
+namespace {
+
+// A capture loop that has not come back from grab() for this long is stuck (grab() returns
+// at least every Capture::kGrabTimeout), and the watchdog must stop being fed.
+constexpr std::int64_t kCaptureStallNs = 1'000'000'000;
+
+double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
+
+std::int64_t frame_period_ns(double fps) { return static_cast<std::int64_t>(1e9 / (fps > 0 ? fps : 30.0)); }
+
+}  // namespace
+
+Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor,
+                   PipelineSettings settings)
+    : capture_(std::move(source), "", "the drive holds, then eases to neutral"),
+      processor_(std::move(processor)),
+      half_period_ns_(frame_period_ns(capture_.frame_rate()) / 2),
+      settings_(std::move(settings)),
+      channels_(settings_.channels, settings_.safety),
+      // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
+      max_result_age_ns_(3 * frame_period_ns(capture_.frame_rate())) {}
+
+Pipeline::~Pipeline() { stop(); }
+
+void Pipeline::set_profile(const PerformerProfile& profile) {
+  profile_ = profile;
+  calibrated_ = profile.calibrated;
+}
+
+void Pipeline::start() {
+  start_ns_ = monotonic_ns();
+  last_watchdog_ns_ = 0;
+  if (side_) side_->start();
+  capture_.start();
+  processing_thread_ = std::thread(&Pipeline::processing_loop, this);
+  output_thread_ = std::thread(&Pipeline::output_loop, this);
+}
+
+void Pipeline::stop() {
+  // Capture and processing first, so the neutral pose is the last thing outputs see.
+  if (stop_ns_ == 0 && start_ns_ > 0) stop_ns_ = monotonic_ns();
+  stop_processing_ = true;
+  capture_.stop();
+  if (processing_thread_.joinable()) processing_thread_.join();
+  if (side_) side_->stop();
+  stop_outputs_ = true;
+  if (output_thread_.joinable()) output_thread_.join();
+}
+
+// ---------------------------------------------------------------- processing thread
+
+void Pipeline::processing_loop() {
+  const auto wait = std::chrono::nanoseconds(settings_.frame_wait);
+  while (!stop_processing_.load(std::memory_order_relaxed)) {
+    if (const CapturedFrame* frame = capture_.take(wait)) {
+      process(*frame);
+    } else if (capture_.ended() || capture_.failed()) {
+      finished_.store(true, std::memory_order_release);
+    }
+    ping_watchdog(monotonic_ns());
+  }
+}
+
+void Pipeline::process(const CapturedFrame& frame) {
+  const FrameMeasurement& measurement = processor_->process(frame.gray);
+  FrameResult result;
+  result.sequence = frame.sequence;
+  result.capture_time_ns = frame.capture_time_ns;
+  result.media_time_s = frame.media_time_s;
+  result.tracked = measurement.tracked;
+  if (measurement.tracked) {
+    result.measures = measurement.measures;
+    result.visemes = measurement.visemes;
+    result.signals = drive_signals(measurement.measures, measurement.visemes, profile_);
+    if (const auto side = side_ ? side_->protrusion_near(frame.capture_time_ns, half_period_ns_) : std::nullopt) {
+      result.side_used = true;
+      result.protrusion_side = *side;
+      result.signals[Signal::kProtrusion] = static_cast<float>(profile_.protrusion_side.scale(*side));
+    }
+  }
+  result.width = frame.gray.cols;
+  result.height = frame.gray.rows;
+  result.processed_time_ns = monotonic_ns();
+  processed_latency_.add(result.processed_time_ns - result.capture_time_ns);
+
+  if (was_tracked_ && !result.tracked) lost_track_.fetch_add(1, std::memory_order_relaxed);
+  was_tracked_ = result.tracked;
+  tracked_.fetch_add(result.tracked, std::memory_order_relaxed);
+  results_.publish(result);
+  for (ResultSink* sink : sinks_) sink->push(result);
+  calibrate_step(result);
+  const std::uint64_t processed = processed_.fetch_add(1, std::memory_order_relaxed) + 1;
+  if (settings_.max_frames > 0 && processed >= settings_.max_frames) finished_.store(true, std::memory_order_release);
+}
+
+void Pipeline::calibrate_step(const FrameResult& result) {
+  const std::uint32_t requests = control_.calibrate_requests.load(std::memory_order_relaxed);
+  if (requests != calibrate_requests_seen_) {
+    calibrate_requests_seen_ = requests;
+    // A request while a capture is under way joins it.
+    if (!capturing_neutral_) {
+      capturing_neutral_ = true;
+      neutral_.clear();
+      if (side_) side_->recalibrate();
+      spdlog::info("calibrating: hold a neutral face for {} tracked frames", settings_.neutral_frames);
+    }
+  }
+  if (!capturing_neutral_ || !result.tracked) return;
+  neutral_.add(result.measures);
+  if (neutral_.size() < settings_.neutral_frames) return;
+  capturing_neutral_ = false;
+  // Once per calibration, not per frame: the medians allocate, the log lines too.
+  try {
+    profile_ = recentre(profile_, neutral_.samples());
+    calibrated_ = true;
+    recentred_.publish(profile_);
+    spdlog::info("calibrated neutral: open {:.3f}, width {:.3f}, protrusion {:.3f}", profile_.rest.open,
+                 profile_.rest.width, profile_.rest.protrusion);
+  } catch (const CalibrationError& e) {
+    spdlog::error("calibration failed: {}", e.what());
+  }
+}
+
+void Pipeline::ping_watchdog(std::int64_t now_ns) {
+  if (settings_.watchdog_interval.count() == 0) return;
+  if (now_ns - last_watchdog_ns_ < std::chrono::nanoseconds(settings_.watchdog_interval).count()) return;
+  // A stuck capture thread stalls the pipeline just as surely as a stuck processing loop.
+  if (now_ns - capture_.heartbeat_ns() > kCaptureStallNs) return;
+  last_watchdog_ns_ = now_ns;
+  sd_notify(0, "WATCHDOG=1");
+}
+
+// ---------------------------------------------------------------- output thread
+
+std::uint16_t Pipeline::status(bool tracked, bool side_used, bool connected, bool enabled) const {
+  return status_word({.tracking = tracked,
+                      .calibrated = calibrated_.load(std::memory_order_relaxed),
+                      .fail_safe = channels_.fail_safe_active(),
+                      .side_camera = tracked && side_used,
+                      .recording = recorder_ != nullptr && recorder_->recording(),
+                      .outputs_enabled = enabled,
+                      .camera_connected = connected,
+                      .model_mismatch = settings_.model_mismatch});
+}
+
+void Pipeline::output_loop() {
+  FrameResult result;
+  DriveFrame frame;
+  std::uint32_t seen = 0;
+  const auto tick = std::chrono::nanoseconds(settings_.output_tick);
+  std::uint64_t processed_before = 0;
+  std::int64_t fps_since_ns = monotonic_ns();
+  bool connected = true, enabled = true;
+  while (!stop_outputs_.load(std::memory_order_relaxed)) {
+    results_.wait_newer(seen, tick);
+    const std::uint32_t version = results_.read(result);
+    frame.new_result = version != seen;
+    seen = version;
+    const std::int64_t now = monotonic_ns();
+    if (frame.new_result && version > 0) output_latency_.add(now - result.capture_time_ns);
+
+    for (int i = 0; i < channels_.size(); ++i)
+      channels_.set_override(i, control_.overrides[static_cast<std::size_t>(i)].load(std::memory_order_relaxed));
+    enabled = control_.outputs_enabled.load(std::memory_order_relaxed);
+    // A tracked result stops counting as tracking the moment the camera goes away or stops
+    // delivering, not when the processing thread next publishes: the hold time starts there.
+    connected = capture_.connected();
+    const bool tracked = result.tracked && connected && now - result.capture_time_ns <= max_result_age_ns_;
+    channels_.step(result.signals,
+                   {.tracked = tracked, .enabled = enabled, .now_ns = now, .frame_time_ns = result.capture_time_ns});
+
+    // Frames per second over the last second or so.
+    if (now - fps_since_ns >= 1'000'000'000) {
+      const std::uint64_t processed = processed_.load(std::memory_order_relaxed);
+      frame.fps = static_cast<float>(static_cast<double>(processed - processed_before) * 1e9 /
+                                     static_cast<double>(now - fps_since_ns));
+      processed_before = processed;
+      fps_since_ns = now;
+    }
+    frame.status = status(tracked, result.side_used, connected, enabled);
+    frame.sequence = result.sequence;
+    frame.capture_time_ns = result.capture_time_ns;
+    frame.latency_ms = static_cast<float>(ms(result.processed_time_ns - result.capture_time_ns));
+    fill(frame, now);
+    for (Output* output : outputs_) output->publish(frame);
+  }
+  // The last thing every output sees: the neutral pose.
+  channels_.reset_to_neutral();
+  frame.new_result = false;
+  frame.status = status(false, false, connected, enabled);
+  fill(frame, monotonic_ns());
+  for (Output* output : outputs_) output->publish_last(frame);
+}
+
+void Pipeline::fill(DriveFrame& frame, std::int64_t now_ns) {
+  ++frame.counter;
+  frame.time_ns = now_ns;
+  frame.channel_count = channels_.size();
+  std::ranges::copy(channels_.values(), frame.values.begin());
+  drive_frames_.publish(frame);
+}
+
+PipelineStats Pipeline::stats() const {
+  const CaptureCounters capture = capture_.counters();
+  PipelineStats s;
+  s.captured = capture.captured;
+  s.processed = processed_.load(std::memory_order_relaxed);
+  s.tracked = tracked_.load(std::memory_order_relaxed);
+  s.dropped = capture.dropped;
+  s.lost_track = lost_track_.load(std::memory_order_relaxed);
+  s.disconnects = capture.disconnects;
+  s.corrupt = capture.corrupt;
+  s.processed_median_ms = processed_latency_.quantile_ms(0.5);
+  s.processed_p99_ms = processed_latency_.quantile_ms(0.99);
+  s.output_median_ms = output_latency_.quantile_ms(0.5);
+  s.output_p99_ms = output_latency_.quantile_ms(0.99);
+  const std::int64_t end_ns = stop_ns_ > 0 ? stop_ns_.load() : monotonic_ns();
+  s.seconds = start_ns_ > 0 ? static_cast<double>(end_ns - start_ns_) / 1e9 : 0;
+  s.connected = capture_.connected();
+  return s;
+}
+
+}  // namespace lipdrive

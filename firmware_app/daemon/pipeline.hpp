@@ -1,0 +1,161 @@
+// The daemon's bounded-latency frame path (docs/data-flow.md): three threads.
+//
+//   capture thread     owns the FrameSource; copies each frame into a latest-frame-wins
+//                      hand-off (capture.hpp)
+//   processing thread  takes the newest frame; tracker, fit, measures (FrameProcessor), the
+//                      side camera's protrusion, the performer's calibration -> DriveSignals;
+//                      publishes a FrameResult; acts on calibrate requests
+//   output thread      steps the drive channels (smoothing, ranges, fail-safe, slew) on every
+//                      new result and at least every output_tick, assembles the status word
+//                      and hands the DriveFrame to every output
+//
+// The output thread stays because the face detector holds the processing thread for tens of ms
+// per frame while it re-acquires a lost face, and the fail-safe must still tick every 20 ms.
+//
+// A frame that arrives while the previous one is still being processed replaces the waiting
+// one instead of queueing behind it, so latency stays bounded when the CPU is briefly busy.
+// The processing path allocates nothing per frame once the face is tracked.
+#pragma once
+
+#include "core/calibration.hpp"
+#include "core/drive_channels.hpp"
+#include "drivers/frame_source.hpp"
+#include "firmware_app/daemon/capture.hpp"
+#include "firmware_app/daemon/frame_processor.hpp"
+#include "firmware_app/daemon/frame_result.hpp"
+#include "firmware_app/daemon/latency_histogram.hpp"
+#include "firmware_app/daemon/latest_frame.hpp"
+#include "firmware_app/daemon/side_camera.hpp"
+#include "firmware_app/daemon/take_recorder.hpp"
+#include "firmware_app/outputs/output.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace lipdrive {
+
+struct PipelineSettings {
+  std::chrono::milliseconds frame_wait{100};  // how long the processing thread waits for a frame
+  std::uint64_t max_frames = 0;               // finished() after this many processed frames; 0 = never
+  /// sd_notify("WATCHDOG=1") from the processing loop at most this often; 0 = off.
+  std::chrono::microseconds watchdog_interval{0};
+  /// The drive: channels and their safety layer; the outputs see them every result and at
+  /// least every output_tick.
+  std::vector<ChannelSpec> channels;
+  SafetySettings safety;
+  std::chrono::milliseconds output_tick{20};
+  int neutral_frames = 30;      // tracked frames of a calibrate command's neutral capture
+  bool model_mismatch = false;  // reported in the status word (kStatusModelMismatch)
+};
+
+struct PipelineStats {
+  std::uint64_t captured = 0, processed = 0, tracked = 0;
+  std::uint64_t dropped = 0;      // frames replaced by a newer one before processing
+  std::uint64_t lost_track = 0;   // times a tracked face was lost
+  std::uint64_t disconnects = 0;  // times the source went away
+  std::uint64_t corrupt = 0;      // frames the source could not decode
+  double processed_median_ms = 0, processed_p99_ms = 0;  // capture -> processed
+  double output_median_ms = 0, output_p99_ms = 0;        // capture -> output thread
+  double seconds = 0;             // since start()
+  bool connected = true;          // the source currently delivers
+};
+
+class Pipeline {
+ public:
+  Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor,
+           PipelineSettings settings);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  // Before start(). What is passed by reference is not owned and must outlive the pipeline.
+  /// Where drive frames go (output thread).
+  void add_output(Output& output) { outputs_.push_back(&output); }
+  /// Where results go (processing thread).
+  void add_sink(ResultSink& sink) { sinks_.push_back(&sink); }
+  /// The take recorder: a sink whose state the status word reports.
+  void set_recorder(TakeRecorder& recorder) {
+    recorder_ = &recorder;
+    add_sink(recorder);
+  }
+  /// The side camera, paired with front frames by capture time.
+  void set_side_camera(std::unique_ptr<SideCamera> side) { side_ = std::move(side); }
+  /// The performer profile the processing thread applies.
+  void set_profile(const PerformerProfile& profile);
+
+  void start();
+  /// Finishes the frame in hand, gives the outputs the neutral pose, joins all threads.
+  void stop();
+
+  /// max_frames processed, the recording ended, or the source failed for good.
+  bool finished() const { return finished_.load(std::memory_order_acquire); }
+  bool failed() const { return capture_.failed(); }
+
+  PipelineStats stats() const;
+  /// The latest result and its version (0: none yet); lock-free.
+  std::uint32_t latest(FrameResult& result) const { return results_.read(result); }
+  /// The latest drive frame and its version (0: none yet); lock-free.
+  std::uint32_t latest_drive(DriveFrame& frame) const { return drive_frames_.read(frame); }
+  /// The profile the last calibrate command re-centred, and its version (0: none yet), for
+  /// the owner to save; lock-free.
+  std::uint32_t recentred_profile(PerformerProfile& profile) const { return recentred_.read(profile); }
+  const std::string& describe_source() const { return capture_.describe(); }
+
+  /// Commands to the drive (output enable, overrides, calibrate, record); any thread.
+  DriveControl& control() { return control_; }
+
+ private:
+  void processing_loop();
+  void output_loop();
+  void process(const CapturedFrame& frame);
+  /// Processing thread: a new calibrate request starts a neutral capture; the tracked frames
+  /// feed it; the last of settings_.neutral_frames re-centres the profile on them.
+  void calibrate_step(const FrameResult& result);
+  /// Output thread: the status word of the drive frame being assembled.
+  std::uint16_t status(bool tracked, bool side_used, bool connected, bool enabled) const;
+  /// Completes a drive frame from the channel bank and publishes it for readers.
+  void fill(DriveFrame& frame, std::int64_t now_ns);
+  void ping_watchdog(std::int64_t now_ns);
+
+  Capture capture_;
+  std::unique_ptr<FrameProcessor> processor_;
+  std::unique_ptr<SideCamera> side_;
+  std::int64_t half_period_ns_;  // pairing window: half the front camera's frame period
+  PipelineSettings settings_;
+  std::vector<Output*> outputs_;
+  std::vector<ResultSink*> sinks_;
+  const TakeRecorder* recorder_ = nullptr;
+
+  Published<FrameResult> results_;
+  Published<DriveFrame> drive_frames_;
+  Published<PerformerProfile> recentred_;
+  DriveControl control_;
+  std::atomic<bool> calibrated_{false};  // the profile in use is the performer's (status word)
+
+  // Processing thread's.
+  PerformerProfile profile_;
+  CalibrationCapture neutral_;    // a calibrate command's neutral frames
+  bool capturing_neutral_ = false;
+  std::uint32_t calibrate_requests_seen_ = 0;
+  std::int64_t last_watchdog_ns_ = 0;
+  bool was_tracked_ = false;
+
+  ChannelBank channels_;  // output thread's
+  std::int64_t max_result_age_ns_;  // older results do not count as tracking
+  LatencyHistogram processed_latency_, output_latency_;
+
+  std::atomic<std::uint64_t> processed_{0}, tracked_{0}, lost_track_{0};
+  std::atomic<bool> finished_{false};
+  std::atomic<bool> stop_processing_{false}, stop_outputs_{false};
+  std::int64_t start_ns_ = 0;
+  std::atomic<std::int64_t> stop_ns_{0};
+
+  std::thread processing_thread_, output_thread_;
+};
+
+}  // namespace lipdrive

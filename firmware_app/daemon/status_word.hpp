@@ -1,0 +1,37 @@
+// The status word: sixteen bits that tell every output (the Modbus status register, the
+// serial frame header, the GPIO lines) the state of the drive. It is assembled in one place,
+// status_word(), once per drive frame on the output thread, and travels in
+// DriveFrame::status; outputs only read it.
+#pragma once
+
+#include <cstdint>
+
+namespace lipdrive {
+
+/// Bits of the status word (docs/modbus-register-map.md, docs/serial-protocol.md).
+enum StatusBit : std::uint16_t {
+  kStatusTracking = 1 << 0,         // the newest frame has a tracked face
+  kStatusCalibrated = 1 << 1,       // a performer profile is in use
+  kStatusFailSafe = 1 << 2,         // channels are held at or easing to neutral
+  kStatusSideCamera = 1 << 3,       // a side camera delivers and protrusion comes from it
+  kStatusRecording = 1 << 4,        // a take is being recorded
+  kStatusOutputsEnabled = 1 << 5,   // output enable (a Modbus control register) is on
+  kStatusCameraConnected = 1 << 6,  // the front camera delivers frames
+  kStatusModelMismatch = 1 << 7,    // performer and model differ by two mouth-height classes
+};
+
+/// What the status word reports, one flag per bit.
+struct DriveState {
+  bool tracking = false;
+  bool calibrated = false;
+  bool fail_safe = true;
+  bool side_camera = false;
+  bool recording = false;
+  bool outputs_enabled = false;
+  bool camera_connected = false;
+  bool model_mismatch = false;
+};
+
+std::uint16_t status_word(const DriveState& state);
+
+}  // namespace lipdrive

@@ -1,0 +1,173 @@
+#include "firmware_app/daemon/take_recorder.hpp"
+
+#include "firmware_app/tables/measures_csv.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+#include <fcntl.h>
+#include <unistd.h>
+#include <utility>
+
+namespace lipdrive {
+
+std::filesystem::path take_file_name(const std::filesystem::path& dir) {
+  const std::time_t now = std::time(nullptr);
+  std::tm local{};
+  ::localtime_r(&now, &local);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", &local);
+  // Two takes in one second (a quick reload) must not overwrite each other.
+  std::filesystem::path file = dir / fmt::format("take-{}.csv", stamp);
+  std::error_code ec;
+  for (int n = 2; std::filesystem::exists(file, ec); ++n) file = dir / fmt::format("take-{}-{}.csv", stamp, n);
+  return file;
+}
+
+TakeRecorder::TakeRecorder(std::string source, std::chrono::milliseconds flush_interval)
+    : source_(std::move(source)), flush_interval_(flush_interval), thread_(&TakeRecorder::run, this) {}
+
+TakeRecorder::~TakeRecorder() {
+  active_ = false;
+  {
+    std::lock_guard lock(mutex_);
+    quit_ = true;
+  }
+  thread_.join();
+}
+
+void TakeRecorder::start(const std::filesystem::path& file) {
+  std::lock_guard lock(mutex_);
+  start_request_ = file;
+  stop_request_ = false;
+  error_.reset();
+  active_ = true;
+}
+
+void TakeRecorder::stop() {
+  std::lock_guard lock(mutex_);
+  active_ = false;
+  start_request_.reset();
+  stop_request_ = true;
+}
+
+std::optional<std::string> TakeRecorder::error() const {
+  std::lock_guard lock(mutex_);
+  return error_;
+}
+
+void TakeRecorder::push(const FrameResult& result) {
+  if (!active_.load(std::memory_order_acquire)) return;
+  const std::uint64_t head = head_.load(std::memory_order_relaxed);
+  if (head - tail_.load(std::memory_order_acquire) >= kRingSize) {
+    rows_lost_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  ring_[head % kRingSize] = result;
+  head_.store(head + 1, std::memory_order_release);
+}
+
+void TakeRecorder::run() {
+  for (;;) {
+    bool quit = false;
+    {
+      std::lock_guard lock(mutex_);
+      quit = quit_;
+    }
+    apply_request();
+    drain();
+    if (fd_.valid() && std::chrono::steady_clock::now() - last_sync_ >= flush_interval_) {
+      if (::fdatasync(fd_.get()) != 0) fail(fmt::format("{}: recording stopped: {}", file_.string(), std::strerror(errno)));
+      last_sync_ = std::chrono::steady_clock::now();
+    }
+    if (quit) break;
+    // The ring holds far more than one nap's worth of frames.
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  close_take();
+}
+
+void TakeRecorder::apply_request() {
+  std::optional<std::filesystem::path> start;
+  bool stop = false;
+  {
+    std::lock_guard lock(mutex_);
+    start = std::exchange(start_request_, std::nullopt);
+    stop = std::exchange(stop_request_, false);
+  }
+  // Rows queued before the request belong to the take that is open, if any.
+  if (stop || (start && fd_.valid())) {
+    drain();
+    close_take();
+  }
+  if (start) open_take(*start);
+}
+
+void TakeRecorder::open_take(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path(), ec);
+  file_ = file;
+  fd_ = UniqueFd(::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0640));
+  if (!fd_.valid()) {
+    fail(fmt::format("{}: cannot record a take: {}", file.string(), std::strerror(errno)));
+    return;
+  }
+  last_sync_ = std::chrono::steady_clock::now();
+  const std::string header = measures_csv_header(false) + ",capture_time_ns\n";
+  if (write_all(header.data(), header.size())) spdlog::info("recording a take to {}", file.string());
+}
+
+void TakeRecorder::close_take() {
+  if (!fd_.valid()) return;
+  ::fdatasync(fd_.get());
+  fd_.reset();
+  const std::uint64_t lost = rows_lost_.exchange(0);
+  if (lost > 0)
+    spdlog::warn("{}: take closed; {} rows were lost because the storage could not keep up", file_.string(), lost);
+  else
+    spdlog::info("{}: take closed", file_.string());
+}
+
+void TakeRecorder::drain() {
+  const std::uint64_t head = head_.load(std::memory_order_acquire);
+  std::uint64_t tail = tail_.load(std::memory_order_relaxed);
+  if (head == tail) return;
+  lines_.clear();
+  for (; fd_.valid() && tail != head; ++tail) {
+    const FrameResult& r = ring_[tail % kRingSize];
+    append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr,
+                            r.visemes, nullptr);
+    fmt::format_to(std::back_inserter(lines_), ",{}\n", r.capture_time_ns);
+  }
+  // Without an open take the rows are discarded.
+  tail_.store(head, std::memory_order_release);
+  if (fd_.valid()) write_all(lines_.data(), lines_.size());
+}
+
+bool TakeRecorder::write_all(const char* data, std::size_t size) {
+  while (size > 0) {
+    const ssize_t written = ::write(fd_.get(), data, size);
+    if (written < 0 && errno == EINTR) continue;
+    if (written < 0) {
+      fail(fmt::format("{}: recording stopped: {}", file_.string(), std::strerror(errno)));
+      return false;
+    }
+    data += written;
+    size -= static_cast<std::size_t>(written);
+  }
+  return true;
+}
+
+void TakeRecorder::fail(const std::string& message) {
+  spdlog::error("{}", message);
+  active_ = false;
+  {
+    std::lock_guard lock(mutex_);
+    error_ = message;
+  }
+  fd_.reset();
+}
+
+}  // namespace lipdrive

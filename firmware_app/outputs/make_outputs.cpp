@@ -1,0 +1,30 @@
+#include "firmware_app/outputs/make_outputs.hpp"
+
+#include "firmware_app/outputs/gpio_output.hpp"
+#include "firmware_app/outputs/modbus_client_output.hpp"
+#include "firmware_app/outputs/modbus_server_output.hpp"
+#include "firmware_app/outputs/serial_output.hpp"
+
+#include <fmt/format.h>
+
+namespace lipdrive {
+
+std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveControl& control) {
+  std::vector<std::unique_ptr<Output>> outputs;
+  for (const ModbusServerOptions& options : config.outputs.modbus_servers)
+    outputs.push_back(std::make_unique<ModbusServerOutput>(options, config.channels, control));
+  for (const ModbusClientOptions& options : config.outputs.modbus_clients)
+    outputs.push_back(std::make_unique<ModbusClientOutput>(options, config.channels));
+  for (const SerialOutputOptions& options : config.outputs.serial)
+    outputs.push_back(std::make_unique<SerialOutput>(options, config.channels));
+  if (config.outputs.gpio.enabled) {
+    try {
+      outputs.push_back(std::make_unique<GpioOutput>(config.outputs.gpio, open_gpio_chip(config.outputs.gpio), control));
+    } catch (const GpioError& e) {
+      throw ConfigError(fmt::format("{}: key outputs.gpio: {}", config.file.string(), e.what()));
+    }
+  }
+  return outputs;
+}
+
+}  // namespace lipdrive

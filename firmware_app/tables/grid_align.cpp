@@ -1,0 +1,83 @@
+#include "firmware_app/tables/grid_align.hpp"
+
+#include "firmware_app/cli/command_error.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <charconv>
+#include <fstream>
+#include <sstream>
+
+namespace lipdrive {
+namespace {
+
+std::optional<long> parse_time(const std::string& text) {
+  long value = 0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (error != std::errc{} || end != text.data() + text.size() || value < 0) return std::nullopt;
+  return value;
+}
+
+std::optional<AlignedWord> parse_line(const std::string& line) {
+  std::istringstream fields(line);
+  std::string start, end, word, extra;
+  if (!(fields >> start >> end >> word) || (fields >> extra)) return std::nullopt;
+  const auto start_time = parse_time(start);
+  const auto end_time = parse_time(end);
+  if (!start_time || !end_time || *end_time <= *start_time) return std::nullopt;
+  return AlignedWord{*start_time, *end_time, word};
+}
+
+}  // namespace
+
+std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) {
+    throw CommandError(fmt::format("cannot open alignment file {}", path.string()), kExitNoInput);
+  }
+  std::vector<AlignedWord> words;
+  std::string line;
+  for (int line_number = 1; std::getline(in, line); ++line_number) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.find_first_not_of(" \t") == std::string::npos) continue;
+    auto word = parse_line(line);
+    if (!word) {
+      throw CommandError(fmt::format("{}:{}: expected 'start end word' with integer times "
+                                     "0 <= start < end, got '{}'",
+                                     path.string(), line_number, line),
+                         kExitDataError);
+    }
+    words.push_back(std::move(*word));
+  }
+  return words;
+}
+
+bool is_silence(const AlignedWord& word) { return word.word == "sil" || word.word == "sp"; }
+
+FrameRange frame_range(const AlignedWord& word) {
+  // Frame f spans [1000 f, 1000 (f + 1)); end is exclusive, so the last frame
+  // holds time end - 1.
+  return {static_cast<int>(word.start / kAlignUnitsPerFrame),
+          static_cast<int>((word.end - 1) / kAlignUnitsPerFrame)};
+}
+
+std::set<int> speech_frames(std::span<const AlignedWord> words) {
+  std::set<int> frames;
+  for (const AlignedWord& word : words) {
+    if (is_silence(word)) continue;
+    const FrameRange range = frame_range(word);
+    for (int frame = range.first; frame <= range.last; ++frame) frames.insert(frame);
+  }
+  return frames;
+}
+
+std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words,
+                                           std::string_view word) {
+  const auto it = std::find_if(words.begin(), words.end(),
+                               [word](const AlignedWord& w) { return w.word == word; });
+  if (it == words.end()) return std::nullopt;
+  return frame_range(*it);
+}
+
+}  // namespace lipdrive

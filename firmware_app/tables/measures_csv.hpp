@@ -1,0 +1,34 @@
+// The measures CSV: the per-frame table `lipdrive process` writes and the daemon's take
+// recorder appends to (the same columns), and tables/csv_table.hpp reads back.
+#pragma once
+
+#include "core/drive_signals.hpp"
+#include "core/landmarks.hpp"
+#include "core/mouth_measures.hpp"
+
+#include <fmt/format.h>
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+
+namespace lipdrive {
+
+/// Where a CSV row's frame came from.
+struct CsvRowKey {
+  std::uint64_t frame = 0;
+  double time_s = 0;
+  std::string_view source;
+};
+
+/// The column names, without the line end: the measures, then viseme_Aah..viseme_W; with
+/// `include_landmarks`, x0..x67,y0..y67 follow.
+std::string measures_csv_header(bool include_landmarks);
+
+/// One row under measures_csv_header, without the line end. `measures` null: the frame was
+/// not tracked (empty fields; `visemes` is not read). `landmarks` null: no landmark columns.
+void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, const MouthMeasures* measures,
+                             std::span<const float, kNumVisemes> visemes, const Landmarks2D* landmarks);
+
+}  // namespace lipdrive
