@@ -1,7 +1,8 @@
 // The daemon's configuration file: the reference file is valid, and every kind of mistake
 // is reported with the file, the key and the reason.
-#include "fixture_paths.hpp"
+#include "command_run.hpp"
 #include "firmware_app/config/config.hpp"
+#include "fixture_paths.hpp"
 
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -128,20 +129,8 @@ TEST_F(ConfigTest, SyntaxErrorsNameTheLine) {
   EXPECT_THAT(error(), HasSubstr(file_.string() + ":2:"));
 }
 
-struct CommandRun {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
-
-CommandRun run_lipdrive(const std::string& args) {
-  const std::string command = std::string(LIPDRIVE_BINARY) + " " + args + " 2>&1";
-  CommandRun run;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  char buffer[4096];
-  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;) run.output.append(buffer, n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
+test::CommandRun run_lipdrive(const std::string& args) {
+  return test::run_command(std::string(LIPDRIVE_BINARY) + " " + args);
 }
 
 constexpr const char* kJawChannel = "[[channels]]\nname = \"jaw\"\nsignal = \"open\"\nout_min = 1000\nout_max = 2000\n"
@@ -215,14 +204,14 @@ TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
 TEST_F(ConfigTest, ReferenceFileIsValid) {
   // The shipped file: default model and the default clip next to the binary.
   const fs::path reference = fs::path(LIPDRIVE_SOURCE_DIR) / "config" / "lipdrive.toml";
-  const CommandRun run = run_lipdrive("check-config " + reference.string());
+  const test::CommandRun run = run_lipdrive("check-config " + reference.string());
   EXPECT_EQ(run.exit_code, 0) << run.output;
   EXPECT_THAT(run.output, HasSubstr(reference.string() + ": ok"));
 }
 
 TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   write("fps = 500");
-  const CommandRun run = run_lipdrive("check-config " + file_.string());
+  const test::CommandRun run = run_lipdrive("check-config " + file_.string());
   EXPECT_EQ(run.exit_code, 78) << run.output;
   EXPECT_THAT(run.output, HasSubstr(file_.string() + ": key camera.fps: must be between 1 and 240, got 500"));
   EXPECT_EQ(run_lipdrive("check-config " + (dir_ / "none.toml").string()).exit_code, 78);

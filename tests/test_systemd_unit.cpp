@@ -1,5 +1,7 @@
 // systemd/lipdrive.service: `systemd-analyze verify` accepts it, and its exposure score
 // (`systemd-analyze security --offline=yes`) is reported for the README.
+#include "command_run.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -16,20 +18,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandRun {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
+using lipdrive::test::CommandRun;
 
-CommandRun run(const std::string& command) {
-  CommandRun result;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  char buffer[4096];
-  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;) result.output.append(buffer, n);
-  const int status = ::pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
+CommandRun run(const std::string& command) { return lipdrive::test::run_command(command); }
 
 class SystemdUnitTest : public ::testing::Test {
  protected:
