@@ -45,8 +45,8 @@ constexpr double kMinOpenSpan = 0.05, kMinWidthSpan = 0.03, kMinProtrusionSpan =
 
 void require_span(const MeasureRange& range, double min_span, const char* what, const char* how) {
   if (range.max - range.min < min_span)
-    throw CalibrationError(std::string("the range of motion shows no ") + what + " (" + std::to_string(range.max - range.min) +
-                           " of d): " + how);
+    throw CalibrationError(std::string("the range of motion shows no ") + what + " (" +
+                           std::to_string(range.max - range.min) + " of d): " + how);
 }
 
 }  // namespace
@@ -57,7 +57,8 @@ PerformerProfile calibrate(std::span<const CalibrationSample> neutral, std::span
   if (motion.size() < static_cast<std::size_t>(kMinNeutralFrames))
     throw CalibrationError("the range-of-motion capture has " + std::to_string(motion.size()) + " tracked frames");
   profile.open = {profile.rest.open, quantile(motion, &CalibrationSample::open, 0.98)};
-  profile.width = {quantile(motion, &CalibrationSample::width, 0.02), quantile(motion, &CalibrationSample::width, 0.98)};
+  profile.width = {quantile(motion, &CalibrationSample::width, 0.02),
+                   quantile(motion, &CalibrationSample::width, 0.98)};
   profile.protrusion = {profile.rest.protrusion, quantile(motion, &CalibrationSample::protrusion, 0.98)};
   require_span(profile.open, kMinOpenSpan, "mouth opening", "open the mouth wide");
   require_span(profile.width, kMinWidthSpan, "change of mouth width", "smile wide and round the lips");

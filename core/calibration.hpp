@@ -31,12 +31,12 @@ CalibrationSample calibration_sample(const MouthMeasures& measures);
 /// `lipdrive process` measures on the GRID takes and the generated talking face: closed to
 /// wide-open lips, rounded to spread, and the fit's protrusion range.
 struct PerformerProfile {
-  MeasureRange open{0.03, 0.35};        // MouthMeasures::height_fit
-  MeasureRange width{1.0, 1.8};         // MouthMeasures::width_fit
-  MeasureRange protrusion{-0.02, 0.18}; // MouthMeasures::protrusion_3d
+  MeasureRange open{0.03, 0.35};            // MouthMeasures::height_fit
+  MeasureRange width{1.0, 1.8};             // MouthMeasures::width_fit
+  MeasureRange protrusion{-0.02, 0.18};     // MouthMeasures::protrusion_3d
   MeasureRange protrusion_side{0.0, 0.12};  // the side camera's, over the nose length (rest = 0)
-  CalibrationSample rest{0.03, 1.3, 0.0};  // the neutral capture's median
-  bool calibrated = false;              // measured on this performer (else the defaults)
+  CalibrationSample rest{0.03, 1.3, 0.0};   // the neutral capture's median
+  bool calibrated = false;                  // measured on this performer (else the defaults)
   /// docs/method.md 6 indices of the performer's neutral face, when the calibration saw one.
   std::optional<std::array<double, kNumFacialIndices>> face_indices;
 };

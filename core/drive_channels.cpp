@@ -19,8 +19,7 @@ double map_to_output(const ChannelSpec& spec, double signal_value) {
 }
 
 ChannelBank::ChannelBank(std::span<const ChannelSpec> specs, SafetySettings safety) : safety_(safety) {
-  if (specs.size() > kMaxChannels)
-    throw std::invalid_argument("at most " + std::to_string(kMaxChannels) + " channels");
+  if (specs.size() > kMaxChannels) throw std::invalid_argument("at most " + std::to_string(kMaxChannels) + " channels");
   for (const ChannelSpec& spec : specs) {
     if (!(spec.in_max != spec.in_min))
       throw std::invalid_argument("channel " + spec.name + ": in_min and in_max must differ");

@@ -20,14 +20,14 @@ namespace lipdrive {
 inline constexpr int kMaxChannels = 32;
 
 struct ChannelSpec {
-  std::string name;                // how outputs and the register map refer to it
+  std::string name;  // how outputs and the register map refer to it
   Signal signal = Signal::kOpen;
-  double in_min = 0, in_max = 1;   // signal range mapped onto [out_min, out_max], clamped
+  double in_min = 0, in_max = 1;  // signal range mapped onto [out_min, out_max], clamped
   double out_min = 0, out_max = 1000;
-  double neutral = 0;              // the safe pose, in output units
-  double max_slew_per_s = 0;       // output units per second; 0 = unlimited
-  bool invert = false;             // in_min maps to out_max
-  bool smoothed = false;           // 1€-filter the signal (frame timestamps) before mapping
+  double neutral = 0;         // the safe pose, in output units
+  double max_slew_per_s = 0;  // output units per second; 0 = unlimited
+  bool invert = false;        // in_min maps to out_max
+  bool smoothed = false;      // 1€-filter the signal (frame timestamps) before mapping
   OneEuroSettings smoothing{};
 };
 
@@ -45,9 +45,9 @@ double map_to_output(const ChannelSpec& spec, double signal_value);
 
 /// What step() needs besides the signals.
 struct DriveInput {
-  bool tracked = false;         // the signals come from a tracked face
-  bool enabled = true;          // outputs enabled; disabled eases to neutral like a loss
-  std::int64_t now_ns = 0;      // monotonic
+  bool tracked = false;            // the signals come from a tracked face
+  bool enabled = true;             // outputs enabled; disabled eases to neutral like a loss
+  std::int64_t now_ns = 0;         // monotonic
   std::int64_t frame_time_ns = 0;  // capture time of the signals: the smoothing's clock
 };
 

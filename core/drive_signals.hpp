@@ -10,8 +10,7 @@ namespace lipdrive {
 
 // The 16 visemes of docs/method.md 2, in this order (the order of the viseme signals too).
 inline constexpr std::array<std::string_view, 16> kVisemeNames{
-    "Aah", "BigAah", "B-M-P", "Ch-J-Sh", "D-S-T", "Eee", "Eh", "F-V",
-    "i",   "K",      "N",     "Oh",      "Ooh-Q", "R",   "Th",  "W"};
+    "Aah", "BigAah", "B-M-P", "Ch-J-Sh", "D-S-T", "Eee", "Eh", "F-V", "i", "K", "N", "Oh", "Ooh-Q", "R", "Th", "W"};
 inline constexpr int kNumVisemes = static_cast<int>(kVisemeNames.size());
 
 /// What a drive channel can follow. kTracking is 1 while a face is tracked, else 0.

@@ -51,8 +51,8 @@ bool FaceTracker::detect(const cv::Mat& gray) {
   const std::vector<dlib::rectangle> faces = detector_->hog(dlib::cv_image<unsigned char>(gray));
   if (faces.empty()) return false;
   // One performer per camera: the largest face is theirs.
-  const auto largest = std::max_element(faces.begin(), faces.end(),
-                                        [](const auto& a, const auto& b) { return a.area() < b.area(); });
+  const auto largest =
+      std::max_element(faces.begin(), faces.end(), [](const auto& a, const auto& b) { return a.area() < b.area(); });
   box_ = FaceBox{largest->left(), largest->top(), largest->right(), largest->bottom()};
   return true;
 }

@@ -54,7 +54,8 @@ MouthClasses mouth_classes(const FacialMeasures& measures) {
 
 Compatibility compatibility(const FacialMeasures& performer, const FacialMeasures& model) {
   Compatibility c{mouth_classes(performer), mouth_classes(model)};
-  c.warn = std::abs(static_cast<int>(c.performer.vertical_mouth_height) - static_cast<int>(c.model.vertical_mouth_height)) == 2;
+  c.warn = std::abs(static_cast<int>(c.performer.vertical_mouth_height) -
+                    static_cast<int>(c.model.vertical_mouth_height)) == 2;
   return c;
 }
 

@@ -31,27 +31,27 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 /// The frame-independent moments of the set's landmarks of the model.
 template <int K>
 struct ModelMoments {
-  Mat<3, 1> centroid;                // m̄
-  Mat<3, 3> scatter;                 // sum_i m'_i m'_i^T
-  Mat<K, 9> basis_mean;              // column 3a + b: B_a^T m'_(b) = sum_i V̂_i[a,:]^T m'_i[b]
-  Mat<K, 3> basis_sum;               // column a: B_a^T 1
-  std::array<Mat<K, K>, 6> gram;     // G_xx, G_yy, G_zz, G_xy + G_yx, G_xz + G_zx, G_yz + G_zy
+  Mat<3, 1> centroid;             // m̄
+  Mat<3, 3> scatter;              // sum_i m'_i m'_i^T
+  Mat<K, 9> basis_mean;           // column 3a + b: B_a^T m'_(b) = sum_i V̂_i[a,:]^T m'_i[b]
+  Mat<K, 3> basis_sum;            // column a: B_a^T 1
+  std::array<Mat<K, K>, 6> gram;  // G_xx, G_yy, G_zz, G_xy + G_yx, G_xz + G_zx, G_yz + G_zy
 };
 
 /// The moments of one frame's detected landmarks of the set.
 template <int K>
 struct ImageMoments {
-  Mat<2, 1> centroid;                // c2
-  double mean_squared_radius;        // (1/L) sum_i |y'_i|^2
-  Mat<3, 2> mean_cross;              // sum_i m'_i y'_i^T
-  Mat<K, 6> basis_cross;             // column 2a + c: B_a^T y'_(c)
+  Mat<2, 1> centroid;          // c2
+  double mean_squared_radius;  // (1/L) sum_i |y'_i|^2
+  Mat<3, 2> mean_cross;        // sum_i m'_i y'_i^T
+  Mat<K, 6> basis_cross;       // column 2a + c: B_a^T y'_(c)
 };
 
 /// The moments of the model's landmarks X_i = m_i + V̂_i alpha, against the frame's.
 struct ShapeMoments {
-  Mat<3, 1> centroid;                // c3
-  Mat<3, 3> scatter;                 // sum_i (X_i - c3)(X_i - c3)^T
-  Mat<3, 2> cross;                   // sum_i (X_i - c3) y'_i^T
+  Mat<3, 1> centroid;  // c3
+  Mat<3, 3> scatter;   // sum_i (X_i - c3)(X_i - c3)^T
+  Mat<3, 2> cross;     // sum_i (X_i - c3) y'_i^T
 };
 
 /// G_ab = B_a^T B_b, the blocks of A^T A and of the landmarks' scatter (see shape_normal_matrix).
@@ -101,8 +101,8 @@ template <int L, int K>
 ShapeMoments shape_moments(const ModelMoments<K>& model, const ImageMoments<K>& image, const Mat<K, 1>& alpha) {
   // lazyProduct: at these sizes Eigen's general matrix-vector kernel costs more than the arithmetic.
   const Mat<3, 1> offset = model.basis_sum.transpose().lazyProduct(alpha) / L;  // mean of V̂_i alpha
-  const Mat<9, 1> linear = model.basis_mean.transpose().lazyProduct(alpha);    // sum_i m'_i (V̂_i alpha)^T
-  const Mat<6, 1> cross = image.basis_cross.transpose().lazyProduct(alpha);    // sum_i (V̂_i alpha) y'_i^T
+  const Mat<9, 1> linear = model.basis_mean.transpose().lazyProduct(alpha);     // sum_i m'_i (V̂_i alpha)^T
+  const Mat<6, 1> cross = image.basis_cross.transpose().lazyProduct(alpha);     // sum_i (V̂_i alpha) y'_i^T
   // sum_i (V̂_i alpha)_a (V̂_i alpha)_b = alpha^T G_ab alpha, each as one pass over G_ab.
   const Mat<K, K> outer = alpha.lazyProduct(alpha.transpose());
   const auto form = [&](int block) { return model.gram[block].cwiseProduct(outer).sum(); };
@@ -185,7 +185,7 @@ Mat<K, 1> shape_rhs(const ModelMoments<K>& model, const ImageMoments<K>& image, 
   M.noalias() = R.transpose() * R;
   const Mat<2, 1> e = R * model.centroid + camera.template topRightCorner<2, 1>() - image.centroid;
   Mat<K, 1> rhs;
-  rhs.noalias() = model.basis_mean.lazyProduct(M.reshaped());  // column 3a + b meets M(b, a) = M(a, b)
+  rhs.noalias() = model.basis_mean.lazyProduct(M.reshaped());    // column 3a + b meets M(b, a) = M(a, b)
   rhs.noalias() -= image.basis_cross.lazyProduct(R.reshaped());  // column 2a + c meets R(c, a)
   rhs.noalias() += model.basis_sum.lazyProduct(R.transpose() * e);
   return rhs;
@@ -208,8 +208,8 @@ template <int K>
 Mat<3, K> scaled_basis_rows(const MorphableModel& model, int vertex, int num_components) {
   Mat<3, K> rows = Mat<3, K>::Zero();
   rows.leftCols(num_components) =
-      (model.basis.block(3 * vertex, 0, 3, num_components) *
-       model.stddev.head(num_components).asDiagonal()).template cast<double>();
+      (model.basis.block(3 * vertex, 0, 3, num_components) * model.stddev.head(num_components).asDiagonal())
+          .template cast<double>();
   return rows;
 }
 
@@ -273,29 +273,34 @@ class FixedSizeFitter final : public FitterBase {
   }
 
   FitSettings settings_;
-  std::array<int, L> indices_;           // iBUG index of each set landmark
-  Mat<3 * L, K> basis_;                  // V̂ at the set's landmarks: [B_x; B_y; B_z]
-  Mat<L, 3> centred_mean_;               // m'_i, one per row (mm)
+  std::array<int, L> indices_;  // iBUG index of each set landmark
+  Mat<3 * L, K> basis_;         // V̂ at the set's landmarks: [B_x; B_y; B_z]
+  Mat<L, 3> centred_mean_;      // m'_i, one per row (mm)
   ModelMoments<K> moments_;
   Mat<3, kNumLandmarks> all_mean_;       // m at all 68 landmarks, NaN where unmapped
   Mat<3 * kNumLandmarks, K> all_basis_;  // V̂ at all 68 landmarks, rows x, y, z per landmark
 };
 
 template <int K>
-std::unique_ptr<FitterBase> make_fixed_size_fitter(const MorphableModel& model, LandmarkSet set,
-                                                   int num_components, FitSettings settings) {
+std::unique_ptr<FitterBase> make_fixed_size_fitter(const MorphableModel& model, LandmarkSet set, int num_components,
+                                                   FitSettings settings) {
   const std::span<const int> indices = landmark_indices(set);
   switch (set) {
     case LandmarkSet::F1:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F1), K>>(model, indices, num_components, settings);
+      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F1), K>>(model, indices, num_components,
+                                                                                   settings);
     case LandmarkSet::F2:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F2), K>>(model, indices, num_components, settings);
+      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F2), K>>(model, indices, num_components,
+                                                                                   settings);
     case LandmarkSet::F3:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F3), K>>(model, indices, num_components, settings);
+      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F3), K>>(model, indices, num_components,
+                                                                                   settings);
     case LandmarkSet::F4:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F4), K>>(model, indices, num_components, settings);
+      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F4), K>>(model, indices, num_components,
+                                                                                   settings);
     case LandmarkSet::F5:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F5), K>>(model, indices, num_components, settings);
+      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F5), K>>(model, indices, num_components,
+                                                                                   settings);
   }
   throw std::invalid_argument("Fitter: unknown landmark set");
 }

@@ -17,18 +17,19 @@ namespace lipdrive {
 inline constexpr int kMaxFitComponents = 40;
 
 struct FitSettings {
-  int iterations = 3;    // pose <-> shape alternations per frame (>= 1)
-  double lambda = 1.0;   // shape regulariser; 1 = MAP estimate under the prior alpha ~ N(0, I)
-  double sigma_px = 1.0; // landmark noise standard deviation in pixels
+  int iterations = 3;     // pose <-> shape alternations per frame (>= 1)
+  double lambda = 1.0;    // shape regulariser; 1 = MAP estimate under the prior alpha ~ N(0, I)
+  double sigma_px = 1.0;  // landmark noise standard deviation in pixels
 };
 
 /// Fixed size: no allocation when reused frame to frame.
 struct FitOutput {
-  Eigen::Matrix<double, 3, 4> camera;  // affine camera, last row 0 0 0 1: image = camera * [X;1]
+  Eigen::Matrix<double, 3, 4> camera;                        // affine camera, last row 0 0 0 1: image = camera * [X;1]
   Eigen::Matrix<double, kMaxFitComponents, 1> coefficients;  // alpha (first num_components used); also the warm start
   Landmarks2D projected;                                     // all 68 model landmarks projected (NaN if unmapped)
-  Eigen::Matrix<double, 3, kNumLandmarks> model_landmarks;   // fitted shape at the 68 landmark vertices (mm, NaN if unmapped)
-  double reprojection_error_px;                              // RMS over the landmarks of the set
+  Eigen::Matrix<double, 3, kNumLandmarks>
+      model_landmarks;           // fitted shape at the 68 landmark vertices (mm, NaN if unmapped)
+  double reprojection_error_px;  // RMS over the landmarks of the set
 };
 
 /// The interface of FixedSizeFitter<L, K> (fitting.cpp), one per landmark set and size.

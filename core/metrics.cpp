@@ -62,8 +62,7 @@ SeriesAgreement compare_series(std::span<const double> truth, std::span<const do
 
   SeriesAgreement result;
   result.pairs_used = static_cast<int>(n);
-  result.rmse_scaled =
-      root_mean_square_difference(min_max_scaled(pairs.truth), min_max_scaled(pairs.output));
+  result.rmse_scaled = root_mean_square_difference(min_max_scaled(pairs.truth), min_max_scaled(pairs.output));
 
   double abs_sum = 0;
   double abs_max = 0;

@@ -26,13 +26,13 @@ void validate(const ModelBuildInput& input, const ModelBuildOptions& options) {
   for (std::size_t t = 0; t < input.triangles.size(); ++t)
     for (std::uint32_t v : input.triangles[t])
       if (v >= static_cast<std::uint64_t>(n))
-        throw ModelBuildError("triangle " + std::to_string(t) + " refers to vertex " + std::to_string(v) +
-                              " of " + std::to_string(n));
+        throw ModelBuildError("triangle " + std::to_string(t) + " refers to vertex " + std::to_string(v) + " of " +
+                              std::to_string(n));
   for (int l = 0; l < kNumLandmarks; ++l) {
     const std::int32_t v = input.landmark_vertex[l];
     if (v < -1 || v >= n)
-      throw ModelBuildError("landmark " + std::to_string(l) + " maps to vertex " + std::to_string(v) +
-                            ", outside 0.." + std::to_string(n - 1) + " (or -1 for unmapped)");
+      throw ModelBuildError("landmark " + std::to_string(l) + " maps to vertex " + std::to_string(v) + ", outside 0.." +
+                            std::to_string(n - 1) + " (or -1 for unmapped)");
   }
   if (options.components < 0) throw ModelBuildError("component count must be >= 0 (0 = by variance target)");
   if (!(options.variance_target > 0 && options.variance_target <= 1))

@@ -44,12 +44,9 @@ class ByteWriter {
 };
 
 void check_serializable(const MorphableModel& m) {
-  const auto fail = [](const std::string& what) {
-    throw std::invalid_argument("cannot serialize model: " + what);
-  };
+  const auto fail = [](const std::string& what) { throw std::invalid_argument("cannot serialize model: " + what); };
   if (m.mean.size() % 3 != 0) fail("mean size is not a multiple of 3");
-  if (m.basis.rows() != m.mean.size() || m.basis.cols() != m.stddev.size())
-    fail("basis is not 3N x K");
+  if (m.basis.rows() != m.mean.size() || m.basis.cols() != m.stddev.size()) fail("basis is not 3N x K");
   if (m.pose_coefficients.rows() != m.stddev.size() ||
       m.pose_coefficients.cols() != static_cast<Eigen::Index>(m.pose_names.size()))
     fail("pose_coefficients is not K x P");
@@ -70,8 +67,7 @@ std::uint64_t get_le(std::span<const std::uint8_t> bytes, std::size_t offset, in
 // out of bounds.
 class ByteReader {
  public:
-  ByteReader(std::span<const std::uint8_t> bytes, const std::string& source)
-      : bytes_(bytes), source_(source) {}
+  ByteReader(std::span<const std::uint8_t> bytes, const std::string& source) : bytes_(bytes), source_(source) {}
 
   std::uint16_t u16() { return static_cast<std::uint16_t>(get_le(take(2), 0, 2)); }
   std::uint32_t u32() { return static_cast<std::uint32_t>(get_le(take(4), 0, 4)); }
@@ -113,8 +109,8 @@ std::optional<std::uint64_t> fixed_payload_bytes(const Header& h) {
   if (__builtin_mul_overflow(n3, std::uint64_t{h.components}, &basis_values)) return std::nullopt;
   if (__builtin_mul_overflow(std::uint64_t{h.components}, std::uint64_t{h.poses}, &coefficient_values))
     return std::nullopt;
-  const std::uint64_t values[] = {1, n3, h.components, basis_values, 3ull * h.triangles, kNumLandmarks,
-                                  coefficient_values};
+  const std::uint64_t values[] = {
+      1, n3, h.components, basis_values, 3ull * h.triangles, kNumLandmarks, coefficient_values};
   for (std::uint64_t v : values) {
     std::uint64_t bytes = 0;
     if (__builtin_mul_overflow(v, std::uint64_t{4}, &bytes) || __builtin_add_overflow(total, bytes, &total))
@@ -147,9 +143,8 @@ Header read_header(std::span<const std::uint8_t> bytes, const std::string& sourc
 
   const std::uint64_t available = bytes.size() - kModelHeaderSize;
   if (h.payload_length > available)
-    throw ModelFormatError(source + ": truncated (expected " +
-                           std::to_string(h.payload_length) + " payload bytes after the header, got " +
-                           std::to_string(available) + ")");
+    throw ModelFormatError(source + ": truncated (expected " + std::to_string(h.payload_length) +
+                           " payload bytes after the header, got " + std::to_string(available) + ")");
   if (h.payload_length < available)
     throw ModelFormatError(source + ": " + std::to_string(available - h.payload_length) +
                            " unexpected bytes after the payload");
@@ -160,16 +155,15 @@ Header read_header(std::span<const std::uint8_t> bytes, const std::string& sourc
 
   const auto fixed = fixed_payload_bytes(h);
   if (!fixed || *fixed > h.payload_length)
-    throw ModelFormatError(source + ": sizes inconsistent with the payload length (" +
-                           std::to_string(h.vertices) + " vertices, " + std::to_string(h.components) +
-                           " components, " + std::to_string(h.triangles) + " triangles, " +
-                           std::to_string(h.poses) + " poses do not fit in " +
-                           std::to_string(h.payload_length) + " bytes)");
+    throw ModelFormatError(source + ": sizes inconsistent with the payload length (" + std::to_string(h.vertices) +
+                           " vertices, " + std::to_string(h.components) + " components, " +
+                           std::to_string(h.triangles) + " triangles, " + std::to_string(h.poses) +
+                           " poses do not fit in " + std::to_string(h.payload_length) + " bytes)");
   if (h.vertices == 0) throw ModelFormatError(source + ": model has no vertices");
   if (h.components == 0) throw ModelFormatError(source + ": model has no components");
   if (std::uint64_t{h.components} > 3ull * h.vertices)
-    throw ModelFormatError(source + ": " + std::to_string(h.components) + " components exceed 3N = " +
-                           std::to_string(3ull * h.vertices));
+    throw ModelFormatError(source + ": " + std::to_string(h.components) +
+                           " components exceed 3N = " + std::to_string(3ull * h.vertices));
   return h;
 }
 
@@ -260,8 +254,8 @@ MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std:
   const auto coefficient_count = static_cast<std::uint64_t>(k) * h.poses;
   if (in.remaining() != coefficient_count * 4)
     throw ModelFormatError(source_name + ": sizes inconsistent with the payload length (" +
-                           std::to_string(in.remaining()) + " bytes left for " +
-                           std::to_string(coefficient_count) + " pose coefficients)");
+                           std::to_string(in.remaining()) + " bytes left for " + std::to_string(coefficient_count) +
+                           " pose coefficients)");
   in.floats(m.pose_coefficients.data(), coefficient_count);
 
   validate_values(m, source_name);

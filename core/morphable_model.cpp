@@ -22,8 +22,8 @@ std::optional<int> MorphableModel::pose_index(std::string_view name) const {
 }
 
 int MorphableModel::mapped_landmark_count() const {
-  return static_cast<int>(std::count_if(landmark_vertex.begin(), landmark_vertex.end(),
-                                        [](std::int32_t v) { return v >= 0; }));
+  return static_cast<int>(
+      std::count_if(landmark_vertex.begin(), landmark_vertex.end(), [](std::int32_t v) { return v >= 0; }));
 }
 
 }  // namespace lipdrive

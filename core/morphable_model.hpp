@@ -24,14 +24,14 @@ struct Mesh {
 };
 
 struct MorphableModel {
-  Eigen::VectorXf mean;    // 3N: x1,y1,z1,...,xN,yN,zN
-  Eigen::VectorXf stddev;  // K: standard deviation of each component (sqrt eigenvalue)
-  Eigen::MatrixXf basis;   // 3N x K, orthonormal columns, descending variance
+  Eigen::VectorXf mean;      // 3N: x1,y1,z1,...,xN,yN,zN
+  Eigen::VectorXf stddev;    // K: standard deviation of each component (sqrt eigenvalue)
+  Eigen::MatrixXf basis;     // 3N x K, orthonormal columns, descending variance
   float total_variance = 0;  // variance of the training poses, including dropped components
   std::vector<Triangle> triangles;
   std::array<std::int32_t, kNumLandmarks> landmark_vertex{};  // iBUG index -> vertex, -1 = unmapped
-  std::vector<std::string> pose_names;  // the example poses the model was built from
-  Eigen::MatrixXf pose_coefficients;    // K x P: column p = alpha of pose p
+  std::vector<std::string> pose_names;                        // the example poses the model was built from
+  Eigen::MatrixXf pose_coefficients;                          // K x P: column p = alpha of pose p
 
   int num_vertices() const { return static_cast<int>(mean.size() / 3); }
   int num_components() const { return static_cast<int>(stddev.size()); }

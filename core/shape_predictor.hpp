@@ -68,19 +68,19 @@ class ShapePredictorData {
 
   static constexpr int kShapeSize = 2 * kNumLandmarks;  // x0,y0,x1,y1,... in box units [0,1]
 
-  int tree_depth_ = 0;    // splits per tree = 2^depth - 1, leaves = 2^depth
+  int tree_depth_ = 0;  // splits per tree = 2^depth - 1, leaves = 2^depth
   int max_features_ = 0;
-  std::vector<float> initial_shape_;         // kShapeSize: the mean shape, box-normalised
-  std::vector<int> cascade_first_tree_;      // cascades + 1 offsets into the tree arrays
-  std::vector<int> cascade_first_feature_;   // cascades + 1 offsets into anchor/delta arrays
-  std::vector<std::uint16_t> anchor_;        // landmark each feature pixel is attached to
-  std::vector<float> delta_;                 // 2 per feature: offset from its anchor in the mean shape
-  struct Split {  // go to the left child when pixel[first] - pixel[second] > threshold
+  std::vector<float> initial_shape_;        // kShapeSize: the mean shape, box-normalised
+  std::vector<int> cascade_first_tree_;     // cascades + 1 offsets into the tree arrays
+  std::vector<int> cascade_first_feature_;  // cascades + 1 offsets into anchor/delta arrays
+  std::vector<std::uint16_t> anchor_;       // landmark each feature pixel is attached to
+  std::vector<float> delta_;                // 2 per feature: offset from its anchor in the mean shape
+  struct Split {                            // go to the left child when pixel[first] - pixel[second] > threshold
     std::uint16_t first, second;
     float threshold;
   };
-  std::vector<Split> splits_;                // breadth-first within a tree, tree after tree
-  std::vector<float> leaf_values_;           // per leaf: kShapeSize shape increments
+  std::vector<Split> splits_;       // breadth-first within a tree, tree after tree
+  std::vector<float> leaf_values_;  // per leaf: kShapeSize shape increments
 };
 
 /// Evaluates shared predictor data with its own scratch; one per thread.

@@ -152,8 +152,10 @@ int next_turn(std::span<const float> front, int from, double prominence, int sig
   int extreme = from;
   for (int r = from + 1; r < static_cast<int>(front.size()); ++r) {
     if (std::isnan(front[r])) return -1;
-    if (sign * front[r] > sign * front[extreme]) extreme = r;
-    else if (sign * (front[extreme] - front[r]) >= prominence) return extreme;
+    if (sign * front[r] > sign * front[extreme])
+      extreme = r;
+    else if (sign * (front[extreme] - front[r]) >= prominence)
+      return extreme;
   }
   return -1;
 }

@@ -6,11 +6,11 @@
 
 #include <algorithm>
 #include <charconv>
-#include <limits>
-#include <utility>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace lipdrive {
 namespace {
@@ -110,36 +110,38 @@ Vector nnls_normal_equations(const Gram& gram, const Vector& h) {
 }
 
 VisemeSolver::VisemeSolver(const MorphableModel& model)
-    : num_components_(std::min(model.num_components(), kMaxFitComponents)),
-      directions_(decltype(directions_)::Zero()) {
+    : num_components_(std::min(model.num_components(), kMaxFitComponents)), directions_(decltype(directions_)::Zero()) {
   const auto neutral = model.pose_index("neutral");
-  if (!neutral) throw std::invalid_argument("the model has no pose named \"neutral\", so it cannot give viseme weights");
+  if (!neutral)
+    throw std::invalid_argument("the model has no pose named \"neutral\", so it cannot give viseme weights");
   neutral_ = padded(model.pose_coefficients.col(*neutral), num_components_);
   stddev_ = padded(model.stddev, num_components_);
   // Residuals in stddev-weighted coefficients are residuals in model space (mm): the basis
   // is orthonormal, so |basis (σ ⊙ Δα)| = |σ ⊙ Δα|.
   for (int v = 0; v < kNumVisemes; ++v) {
-    const Coefficients full = padded(model.pose_coefficients.col(full_pose_index(model, kVisemeNames[v])), num_components_);
+    const Coefficients full =
+        padded(model.pose_coefficients.col(full_pose_index(model, kVisemeNames[v])), num_components_);
     directions_.col(v) = stddev_.cwiseProduct(full - neutral_);
   }
   gram_ = directions_.transpose() * directions_;
   for (int pose = 0; pose < model.num_poses(); ++pose) {
     const auto parsed = parse_pose_name(model.pose_names[static_cast<std::size_t>(pose)]);
     if (!parsed) continue;
-    ExamplePose example{parsed->first, parsed->second,
-                        padded(model.pose_coefficients.col(pose), num_components_), {}};
+    ExamplePose example{parsed->first, parsed->second, padded(model.pose_coefficients.col(pose), num_components_), {}};
     const Eigen::VectorXd shape = stddev_.head(num_components_).cwiseProduct(example.alpha.head(num_components_));
     for (int i = 0; i < kNumLandmarks; ++i) {
       const int v = model.landmark_vertex[static_cast<std::size_t>(i)];
-      example.landmarks.col(i) = v < 0 ? Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())
-                                       : Eigen::Vector3d(model.mean.segment<3>(3 * v).cast<double>() +
-                                                         model.basis.block(3 * v, 0, 3, num_components_).cast<double>() * shape);
+      example.landmarks.col(i) =
+          v < 0 ? Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())
+                : Eigen::Vector3d(model.mean.segment<3>(3 * v).cast<double>() +
+                                  model.basis.block(3 * v, 0, 3, num_components_).cast<double>() * shape);
     }
     poses_.push_back(example);
   }
 }
 
-VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& observed, std::span<const int> landmarks) const {
+VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& observed,
+                                  std::span<const int> landmarks) const {
   // Squared image distance of every example pose; the nearest is the ML pose.
   std::array<double, 512> distance_storage{};
   const std::size_t count = std::min(poses_.size(), distance_storage.size());
@@ -214,7 +216,8 @@ VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& obser
   const Vector rest = nnls_normal_equations(gram_, directions_.transpose() * target);
   const auto dominant = static_cast<float>(std::clamp(intensity, 0.0, 1.0));
   for (int v = 0; v < kNumVisemes; ++v)
-    out[v] = v == viseme ? dominant : std::min(static_cast<float>(std::min(rest(v), 1.0)), std::nextafter(dominant, 0.0f));
+    out[v] =
+        v == viseme ? dominant : std::min(static_cast<float>(std::min(rest(v), 1.0)), std::nextafter(dominant, 0.0f));
   return out;
 }
 

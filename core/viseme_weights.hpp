@@ -38,8 +38,8 @@ class VisemeSolver {
   /// The weights of a fitted frame, judged in the image: for every example pose (neutral or
   /// "<viseme>_<percent>") the weak-perspective camera that maps its landmarks onto
   /// `observed` over `landmarks` (least-squares affine, projected onto scaled rotation rows:
-  /// an affine camera's shear and unequal scales would absorb mouth shapes), and the residual; the nearest pose is the maximum-likelihood (pose,
-  /// camera) under i.i.d. Gaussian landmark noise. Its viseme gets the intensity refined
+  /// an affine camera's shear and unequal scales would absorb mouth shapes), and the residual; the nearest pose is the
+  /// maximum-likelihood (pose, camera) under i.i.d. Gaussian landmark noise. Its viseme gets the intensity refined
   /// between the neighbouring intensities (parabola through the three distances); what the
   /// fitted coefficients show beyond that pose goes to the NNLS of solve(), always below the
   /// dominant weight. Nearest to neutral: solve(fit.coefficients). `observed` is the detected
@@ -54,10 +54,10 @@ class VisemeSolver {
 
  private:
   int num_components_;
-  Coefficients neutral_;                                       // alpha of the neutral pose
+  Coefficients neutral_;                                              // alpha of the neutral pose
   Eigen::Matrix<double, kMaxFitComponents, kNumVisemes> directions_;  // column v = σ ⊙ c_v
-  Coefficients stddev_;                                        // σ, zero past num_components_
-  Gram gram_;                                                  // directionsᵀ directions
+  Coefficients stddev_;                                               // σ, zero past num_components_
+  Gram gram_;                                                         // directionsᵀ directions
   // The example poses, for solve(fit, ...): viseme (-1 = neutral), intensity in [0, 1],
   // coefficients and 3D landmarks (mm, NaN where unmapped).
   struct ExamplePose {

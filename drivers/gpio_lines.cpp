@@ -93,8 +93,7 @@ class GpiodChipLines final : public GpioLines {
     const char* end = line.data() + line.size();
     if (!line.empty() && std::from_chars(line.data(), end, offset).ptr == end) {
       if (offset >= chip.num_lines())
-        fail("line " + line + ": no such offset (the chip has " + std::to_string(chip.num_lines()) +
-             " lines)");
+        fail("line " + line + ": no such offset (the chip has " + std::to_string(chip.num_lines()) + " lines)");
       return chip.get_line(offset);
     }
     gpiod::line found = chip.find_line(line);
@@ -106,15 +105,13 @@ class GpiodChipLines final : public GpioLines {
     gpiod::line line = find(chip, spec.line);
     gpiod::line_request config;
     config.consumer = kConsumer;
-    config.request_type = spec.direction == GpioDirection::kOutput
-                              ? gpiod::line_request::DIRECTION_OUTPUT
-                              : gpiod::line_request::DIRECTION_INPUT;
+    config.request_type = spec.direction == GpioDirection::kOutput ? gpiod::line_request::DIRECTION_OUTPUT
+                                                                   : gpiod::line_request::DIRECTION_INPUT;
     if (spec.active_low) config.flags = gpiod::line_request::FLAG_ACTIVE_LOW;
     try {
       line.request(config, 0);
     } catch (const std::system_error& error) {
-      if (error_code_of(error) == EBUSY)
-        fail("line " + spec.line + ": busy (used by \"" + line.consumer() + "\")");
+      if (error_code_of(error) == EBUSY) fail("line " + spec.line + ": busy (used by \"" + line.consumer() + "\")");
       fail("line " + spec.line + ": cannot request: " + error.code().message());
     }
     return line;
@@ -125,8 +122,7 @@ class GpiodChipLines final : public GpioLines {
       return candidate.spec.line == line && candidate.spec.direction == direction;
     });
     if (found == requested_.end())
-      fail("line " + line + ": not requested as an " +
-           (direction == GpioDirection::kOutput ? "output" : "input") +
+      fail("line " + line + ": not requested as an " + (direction == GpioDirection::kOutput ? "output" : "input") +
            (chip_ ? "" : " (the chip is closed after a failed reopen)"));
     return found->line;
   }
@@ -139,8 +135,7 @@ class GpiodChipLines final : public GpioLines {
 
 }  // namespace
 
-std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip,
-                                           std::vector<GpioLineSpec> lines) {
+std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip, std::vector<GpioLineSpec> lines) {
   return std::make_unique<GpiodChipLines>(chip, std::move(lines));
 }
 

@@ -51,7 +51,6 @@ class GpioLines {
 /// ("/dev/gpiochip0"), a label or a number, as gpiodetect shows them. Opens the chip and
 /// requests every line (outputs start inactive); throws GpioError naming the chip and the
 /// line (no such chip, not a GPIO chip, no such line, line busy).
-std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip,
-                                           std::vector<GpioLineSpec> lines);
+std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip, std::vector<GpioLineSpec> lines);
 
 }  // namespace lipdrive

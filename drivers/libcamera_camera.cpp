@@ -5,8 +5,8 @@
 #include <sys/mman.h>
 
 #include <libcamera/libcamera.h>
-#include <spdlog/spdlog.h>
 #include <opencv2/core.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <array>
@@ -30,18 +30,15 @@ constexpr auto kReconnectInitial = 100ms;
 constexpr auto kReconnectMax = 5000ms;
 
 /// Formats whose first plane is the full-resolution luma, in order of preference.
-const std::array kLumaFirst = {libcamera::formats::YUV420, libcamera::formats::NV12,
-                               libcamera::formats::YVU420, libcamera::formats::NV21,
-                               libcamera::formats::R8};
+const std::array kLumaFirst = {libcamera::formats::YUV420, libcamera::formats::NV12, libcamera::formats::YVU420,
+                               libcamera::formats::NV21, libcamera::formats::R8};
 
 bool is_luma_first(const libcamera::PixelFormat& format) {
   return std::ranges::find(kLumaFirst, format) != kLumaFirst.end();
 }
 
 /// libcamera returns negated errno values.
-std::string error_text(int negative_errno) {
-  return std::generic_category().message(-negative_errno);
-}
+std::string error_text(int negative_errno) { return std::generic_category().message(-negative_errno); }
 
 /// A hold on the process's CameraManager, started while anyone holds it: libcamera allows
 /// a single CameraManager per process, and a front and a side camera must share it. The
@@ -85,8 +82,7 @@ class ManagerLease {
 /// slots, which touch nothing but `completed_` and `gone_` under `mutex_`.
 class Session {
  public:
-  static std::unique_ptr<Session> open(std::shared_ptr<libcamera::Camera> camera,
-                                       const LibcameraOptions& options) {
+  static std::unique_ptr<Session> open(std::shared_ptr<libcamera::Camera> camera, const LibcameraOptions& options) {
     std::unique_ptr<Session> session(new Session(std::move(camera)));
     session->acquire();
     session->configure(options);
@@ -140,8 +136,8 @@ class Session {
   }
   /// Wraps the luma plane of a completed request's buffer (no copy).
   cv::Mat luma(const libcamera::Request& request) const {
-    return cv::Mat(static_cast<int>(height_), static_cast<int>(width_), CV_8UC1,
-                   mappings_[request.cookie()].luma, stride_);
+    return cv::Mat(static_cast<int>(height_), static_cast<int>(width_), CV_8UC1, mappings_[request.cookie()].luma,
+                   stride_);
   }
   double frame_rate() const { return frame_rate_; }
 
@@ -160,8 +156,7 @@ class Session {
 
   void acquire() {
     if (const int error = camera_->acquire(); error < 0)
-      fail(error == -EBUSY ? "busy (in use by another process or source)"
-                           : "cannot acquire: " + error_text(error));
+      fail(error == -EBUSY ? "busy (in use by another process or source)" : "cannot acquire: " + error_text(error));
     acquired_ = true;
   }
 
@@ -169,8 +164,7 @@ class Session {
     // libcamera API: 0.0.3 takes a StreamRoles vector, 0.1+ a Span<const StreamRole>; a
     // std::vector converts to both.
     const std::vector<libcamera::StreamRole> roles{libcamera::StreamRole::Viewfinder};
-    const std::unique_ptr<libcamera::CameraConfiguration> config =
-        camera_->generateConfiguration(roles);
+    const std::unique_ptr<libcamera::CameraConfiguration> config = camera_->generateConfiguration(roles);
     if (!config || config->empty()) fail("offers no viewfinder stream");
     libcamera::StreamConfiguration& stream = config->at(0);
 
@@ -181,8 +175,7 @@ class Session {
     if (chosen == kLumaFirst.end()) {
       std::string list;
       for (const auto& format : offered) list += (list.empty() ? "" : ", ") + format.toString();
-      fail("offers none of YUV420, NV12, YVU420, NV21, R8 (offers: " +
-           (list.empty() ? "none" : list) + ")");
+      fail("offers none of YUV420, NV12, YVU420, NV21, R8 (offers: " + (list.empty() ? "none" : list) + ")");
     }
     stream.pixelFormat = *chosen;
     if (options.width) stream.size.width = options.width;
@@ -190,18 +183,14 @@ class Session {
 
     const std::string requested = stream.toString();
     switch (config->validate()) {
-      case libcamera::CameraConfiguration::Invalid:
-        fail("cannot stream " + requested);
+      case libcamera::CameraConfiguration::Invalid: fail("cannot stream " + requested);
       case libcamera::CameraConfiguration::Adjusted:
-        spdlog::info("libcamera {}: asked for {}, streams {}", camera_->id(), requested,
-                     stream.toString());
+        spdlog::info("libcamera {}: asked for {}, streams {}", camera_->id(), requested, stream.toString());
         break;
-      case libcamera::CameraConfiguration::Valid:
-        break;
+      case libcamera::CameraConfiguration::Valid: break;
     }
     if (!is_luma_first(stream.pixelFormat))
-      fail("adjusted the format to " + stream.pixelFormat.toString() +
-           ", which has no luma plane first");
+      fail("adjusted the format to " + stream.pixelFormat.toString() + ", which has no luma plane first");
     if (const int error = camera_->configure(config.get()); error < 0)
       fail("cannot configure " + stream.toString() + ": " + error_text(error));
 
@@ -219,10 +208,8 @@ class Session {
       // The luma plane is the first; it may share its dmabuf with the chroma planes at an
       // offset, and mmap needs a page-aligned file offset, so the map starts at 0.
       const libcamera::FrameBuffer::Plane& plane = buffer->planes().front();
-      if (plane.offset == libcamera::FrameBuffer::Plane::kInvalidOffset)
-        fail("buffer plane without an offset");
-      if (plane.length < std::size_t{stride_} * height_)
-        fail("buffer luma plane shorter than stride x height");
+      if (plane.offset == libcamera::FrameBuffer::Plane::kInvalidOffset) fail("buffer plane without an offset");
+      if (plane.length < std::size_t{stride_} * height_) fail("buffer luma plane shorter than stride x height");
       const std::size_t length = std::size_t{plane.offset} + plane.length;
       void* base = mmap(nullptr, length, PROT_READ, MAP_SHARED, plane.fd.get(), 0);
       if (base == MAP_FAILED) fail("cannot map a buffer: " + error_text(-errno));
@@ -251,16 +238,13 @@ class Session {
         const std::int64_t frame_us = std::llround(1e6 / frame_rate);
         const std::array<std::int64_t, 2> limits{frame_us, frame_us};
         // libcamera API: a Span is accepted by every version for array controls.
-        controls.set(libcamera::controls::FrameDurationLimits,
-                     libcamera::Span<const std::int64_t, 2>(limits));
+        controls.set(libcamera::controls::FrameDurationLimits, libcamera::Span<const std::int64_t, 2>(limits));
         frame_rate_ = frame_rate;
       } else {
-        spdlog::warn("libcamera {}: no frame duration control; {} fps not applied", camera_->id(),
-                     frame_rate);
+        spdlog::warn("libcamera {}: no frame duration control; {} fps not applied", camera_->id(), frame_rate);
       }
     }
-    if (const int error = camera_->start(&controls); error < 0)
-      fail("cannot start: " + error_text(error));
+    if (const int error = camera_->start(&controls); error < 0) fail("cannot start: " + error_text(error));
     started_ = true;
     for (const auto& request : requests_)
       if (const int error = camera_->queueRequest(request.get()); error < 0)
@@ -345,10 +329,9 @@ class LibcameraCamera::Impl {
   std::shared_ptr<libcamera::Camera> find_camera() {
     if (auto camera = lease_.manager().get(options_.camera_id)) return camera;
     std::string ids;
-    for (const auto& camera : lease_.manager().cameras())
-      ids += (ids.empty() ? "" : ", ") + camera->id();
-    throw SourceError("libcamera: no camera \"" + options_.camera_id +
-                      "\" (cameras: " + (ids.empty() ? "none" : ids) + ")");
+    for (const auto& camera : lease_.manager().cameras()) ids += (ids.empty() ? "" : ", ") + camera->id();
+    throw SourceError("libcamera: no camera \"" + options_.camera_id + "\" (cameras: " + (ids.empty() ? "none" : ids) +
+                      ")");
   }
 
   GrabStatus disconnect() {
@@ -411,8 +394,7 @@ class LibcameraCamera::Impl {
   Clock::time_point next_reconnect_{};
 };
 
-LibcameraCamera::LibcameraCamera(LibcameraOptions options)
-    : impl_(std::make_unique<Impl>(std::move(options))) {}
+LibcameraCamera::LibcameraCamera(LibcameraOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
 LibcameraCamera::~LibcameraCamera() = default;
 
 GrabStatus LibcameraCamera::grab(Frame& frame, std::chrono::milliseconds timeout) {

@@ -32,8 +32,8 @@ ModbusContext make_context(const ModbusEndpoint& endpoint) {
     throw std::runtime_error(fmt::format("modbus {}: {}", describe(endpoint), modbus_strerror(errno)));
   ModbusContext context(raw);
   if (modbus_set_slave(raw, endpoint.unit_id) == -1)
-    throw std::runtime_error(fmt::format("modbus {}: unit id {}: {}", describe(endpoint), endpoint.unit_id,
-                                         modbus_strerror(errno)));
+    throw std::runtime_error(
+        fmt::format("modbus {}: unit id {}: {}", describe(endpoint), endpoint.unit_id, modbus_strerror(errno)));
   return context;
 }
 

@@ -59,13 +59,11 @@ std::optional<Write> decode_write(const std::uint8_t* pdu, std::span<const std::
       buffer[0] = static_cast<std::uint16_t>((holding[word(1)] & and_mask) | (or_mask & ~and_mask));
       return Write{word(1), buffer.first(1)};
     }
-    case MODBUS_FC_WRITE_MULTIPLE_REGISTERS:
-      return block(word(1), word(3), 5, MODBUS_MAX_WRITE_REGISTERS);
+    case MODBUS_FC_WRITE_MULTIPLE_REGISTERS: return block(word(1), word(3), 5, MODBUS_MAX_WRITE_REGISTERS);
     case MODBUS_FC_WRITE_AND_READ_REGISTERS:
       if (word(3) > MODBUS_MAX_WR_READ_REGISTERS || !fits(word(1), word(3))) return std::nullopt;
       return block(word(5), word(7), 9, MODBUS_MAX_WR_WRITE_REGISTERS);
-    default:
-      return std::nullopt;
+    default: return std::nullopt;
   }
 }
 
@@ -78,8 +76,8 @@ void set_timeouts(modbus_t* context) {
 
 }  // namespace
 
-ModbusServer::ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int input_registers,
-                           int holding_registers, Refresh refresh, Written written)
+ModbusServer::ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int input_registers, int holding_registers,
+                           Refresh refresh, Written written)
     : endpoint_(endpoint),
       max_clients_(max_clients),
       refresh_(std::move(refresh)),

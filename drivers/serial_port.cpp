@@ -43,7 +43,8 @@ tcflag_t data_bits_flag(int bits) {
     case 6: return CS6;
     case 7: return CS7;
     case 8: return CS8;
-    default: throw std::invalid_argument("serial data bits " + std::to_string(bits) + " is not supported (accepted: 5..8)");
+    default:
+      throw std::invalid_argument("serial data bits " + std::to_string(bits) + " is not supported (accepted: 5..8)");
   }
 }
 
@@ -58,9 +59,11 @@ void validate_serial_settings(const SerialPortSettings& settings) {
   baud_constant(settings.baud);
   data_bits_flag(settings.data_bits);
   if (settings.parity != 'N' && settings.parity != 'E' && settings.parity != 'O')
-    throw std::invalid_argument(std::string("serial parity '") + settings.parity + "' is not supported (accepted: N, E, O)");
+    throw std::invalid_argument(std::string("serial parity '") + settings.parity +
+                                "' is not supported (accepted: N, E, O)");
   if (settings.stop_bits != 1 && settings.stop_bits != 2)
-    throw std::invalid_argument("serial stop bits " + std::to_string(settings.stop_bits) + " is not supported (accepted: 1, 2)");
+    throw std::invalid_argument("serial stop bits " + std::to_string(settings.stop_bits) +
+                                " is not supported (accepted: 1, 2)");
 }
 
 std::string describe_serial_settings(const SerialPortSettings& settings) {

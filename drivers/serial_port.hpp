@@ -23,12 +23,12 @@ namespace lipdrive {
 
 /// Line settings, independent of the configuration layer (drivers never include it).
 struct SerialPortSettings {
-  std::string device;   // /dev/ttyUSB0, /dev/serial/by-id/..., a pty link
-  int baud = 115200;    // one of kSupportedBauds
-  char parity = 'N';    // 'N', 'E' or 'O'
-  int data_bits = 8;    // 5..8
-  int stop_bits = 1;    // 1 or 2
-  bool rs485 = false;   // ask the driver to switch the transceiver direction (TIOCSRS485)
+  std::string device;  // /dev/ttyUSB0, /dev/serial/by-id/..., a pty link
+  int baud = 115200;   // one of kSupportedBauds
+  char parity = 'N';   // 'N', 'E' or 'O'
+  int data_bits = 8;   // 5..8
+  int stop_bits = 1;   // 1 or 2
+  bool rs485 = false;  // ask the driver to switch the transceiver direction (TIOCSRS485)
 };
 
 inline constexpr int kSupportedBauds[] = {1200,   2400,   4800,   9600,   19200,  38400,  57600,

@@ -74,7 +74,7 @@ std::size_t format_line_value(double value, std::span<char, kMaxLineValueChars> 
 std::size_t line_size_bound(std::span<const std::string> names) {
   std::size_t bound = 0;
   for (const auto& name : names) bound += name.size() + 1 + kMaxLineValueChars + 1;  // name=value then ' ' or '\n'
-  return std::max<std::size_t>(bound, 1);  // an empty line is still its '\n'
+  return std::max<std::size_t>(bound, 1);                                            // an empty line is still its '\n'
 }
 
 std::size_t encode_line(std::span<const std::string> names, std::span<const double> values,
@@ -87,8 +87,8 @@ std::size_t encode_line(std::span<const std::string> names, std::span<const doub
     std::memcpy(out.data() + at, names[i].data(), names[i].size());
     at += names[i].size();
     out[at++] = '=';
-    at += format_line_value(values[i], std::span<char, kMaxLineValueChars>(reinterpret_cast<char*>(out.data() + at),
-                                                                           kMaxLineValueChars));
+    at += format_line_value(
+        values[i], std::span<char, kMaxLineValueChars>(reinterpret_cast<char*>(out.data() + at), kMaxLineValueChars));
   }
   out[at++] = '\n';
   return at;

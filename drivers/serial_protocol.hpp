@@ -22,9 +22,7 @@ inline constexpr std::uint8_t kFrameStart = 0xA5;
 inline constexpr std::size_t kFrameFixedBytes = 8;  // seq + time + status, counted in L
 inline constexpr std::size_t kMaxFrameChannels = 32;
 
-constexpr std::size_t framed_size(std::size_t channel_count) {
-  return 2 + kFrameFixedBytes + 2 * channel_count + 2;
-}
+constexpr std::size_t framed_size(std::size_t channel_count) { return 2 + kFrameFixedBytes + 2 * channel_count + 2; }
 
 struct FrameHeader {
   std::uint16_t sequence = 0;  // drive frame counter, +1 per tick; a gap = frames dropped or lost
@@ -66,7 +64,7 @@ std::size_t encode_line(std::span<const std::string> names, std::span<const doub
 inline constexpr std::uint8_t kMaestroSetTarget = 0x84;
 inline constexpr std::size_t kMaestroCommandBytes = 4;
 inline constexpr std::uint16_t kMaestroMaxTarget = 0x3FFF;  // 14 bits: 4095.75 µs
-inline constexpr int kMaestroMaxServo = 127;  // 7 bits on the wire; Mini Maestros have up to 24
+inline constexpr int kMaestroMaxServo = 127;                // 7 bits on the wire; Mini Maestros have up to 24
 
 /// Pulse width in µs -> quarter-µs target, rounded to nearest, clamped to 0..kMaestroMaxTarget.
 /// Note that target 0 tells the Maestro to stop sending pulses on that servo.

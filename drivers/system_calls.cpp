@@ -21,14 +21,11 @@ class OperatingSystemCalls final : public SystemCalls {
     } while (result == -1 && errno == EINTR);
     return result;
   }
-  void* mmap(void* address, std::size_t length, int protection, int flags, int fd,
-             off_t offset) override {
+  void* mmap(void* address, std::size_t length, int protection, int flags, int fd, off_t offset) override {
     return ::mmap(address, length, protection, flags, fd, offset);
   }
   int munmap(void* address, std::size_t length) override { return ::munmap(address, length); }
-  int poll(pollfd* fds, nfds_t count, int timeout_ms) override {
-    return ::poll(fds, count, timeout_ms);
-  }
+  int poll(pollfd* fds, nfds_t count, int timeout_ms) override { return ::poll(fds, count, timeout_ms); }
 };
 
 }  // namespace

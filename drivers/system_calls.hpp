@@ -20,8 +20,7 @@ class SystemCalls {
   virtual int open(const char* path, int flags) = 0;
   virtual int close(int fd) = 0;
   virtual int ioctl(int fd, unsigned long request, void* argument) = 0;
-  virtual void* mmap(void* address, std::size_t length, int protection, int flags, int fd,
-                     off_t offset) = 0;
+  virtual void* mmap(void* address, std::size_t length, int protection, int flags, int fd, off_t offset) = 0;
   virtual int munmap(void* address, std::size_t length) = 0;
   virtual int poll(pollfd* fds, nfds_t count, int timeout_ms) = 0;
 };

@@ -59,8 +59,7 @@ namespace {
 
 using detail::V4l2Stream;
 
-constexpr std::array kAutoOrder = {PixelFormat::kGrey, PixelFormat::kNv12, PixelFormat::kYuyv,
-                                   PixelFormat::kMjpeg};
+constexpr std::array kAutoOrder = {PixelFormat::kGrey, PixelFormat::kNv12, PixelFormat::kYuyv, PixelFormat::kMjpeg};
 constexpr const char* kByIdDirectory = "/dev/v4l/by-id/";
 
 std::string error_text(int error) { return std::generic_category().message(error); }
@@ -152,13 +151,11 @@ class StreamOpener {
     if (system_.ioctl(stream_->fd, VIDIOC_QUERYCAP, &capability) == -1)
       fail_with_errno("not a V4L2 device (VIDIOC_QUERYCAP)");
     // device_caps describes this node; capabilities covers the whole physical device.
-    const std::uint32_t caps = (capability.capabilities & V4L2_CAP_DEVICE_CAPS)
-                                   ? capability.device_caps
-                                   : capability.capabilities;
+    const std::uint32_t caps =
+        (capability.capabilities & V4L2_CAP_DEVICE_CAPS) ? capability.device_caps : capability.capabilities;
     if (!(caps & V4L2_CAP_VIDEO_CAPTURE))
-      fail((caps & V4L2_CAP_VIDEO_CAPTURE_MPLANE)
-               ? "is a multi-planar capture device, which is not supported"
-               : "is not a video capture device");
+      fail((caps & V4L2_CAP_VIDEO_CAPTURE_MPLANE) ? "is a multi-planar capture device, which is not supported"
+                                                  : "is not a video capture device");
     if (!(caps & V4L2_CAP_STREAMING)) fail("does not support streaming I/O");
     return reinterpret_cast<const char*>(capability.card);
   }
@@ -209,8 +206,7 @@ class StreamOpener {
     if (pix.width == 0 || pix.height == 0) fail("negotiated an empty image size");
     negotiated.width = pix.width;
     negotiated.height = pix.height;
-    negotiated.bytes_per_line =
-        std::max(pix.bytesperline, packed_bytes_per_line(negotiated.format, pix.width));
+    negotiated.bytes_per_line = std::max(pix.bytesperline, packed_bytes_per_line(negotiated.format, pix.width));
     negotiated.image_size = pix.sizeimage;
   }
 
@@ -236,16 +232,15 @@ class StreamOpener {
     request.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     request.memory = V4L2_MEMORY_MMAP;
     require(VIDIOC_REQBUFS, &request, "VIDIOC_REQBUFS (memory-mapped streaming)");
-    if (request.count < 2)
-      fail("granted " + std::to_string(request.count) + " buffer(s), at least 2 are needed");
+    if (request.count < 2) fail("granted " + std::to_string(request.count) + " buffer(s), at least 2 are needed");
     for (unsigned index = 0; index < request.count; ++index) {
       v4l2_buffer buffer{};
       buffer.index = index;
       buffer.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
       buffer.memory = V4L2_MEMORY_MMAP;
       require(VIDIOC_QUERYBUF, &buffer, "VIDIOC_QUERYBUF");
-      void* data = system_.mmap(nullptr, buffer.length, PROT_READ | PROT_WRITE, MAP_SHARED,
-                                stream_->fd, buffer.m.offset);
+      void* data =
+          system_.mmap(nullptr, buffer.length, PROT_READ | PROT_WRITE, MAP_SHARED, stream_->fd, buffer.m.offset);
       if (data == MAP_FAILED) fail_with_errno("mmap of a capture buffer");
       stream_->buffers.push_back({data, buffer.length});
     }
@@ -274,14 +269,12 @@ class StreamOpener {
 /// monotonic, else the dequeue time (the best bound left).
 std::int64_t capture_time_ns(const v4l2_buffer& buffer) {
   if ((buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
-    return std::int64_t{buffer.timestamp.tv_sec} * 1'000'000'000 +
-           std::int64_t{buffer.timestamp.tv_usec} * 1'000;
+    return std::int64_t{buffer.timestamp.tv_sec} * 1'000'000'000 + std::int64_t{buffer.timestamp.tv_usec} * 1'000;
   return monotonic_ns();
 }
 
 int milliseconds_until(std::chrono::steady_clock::time_point deadline) {
-  const auto left =
-      std::chrono::ceil<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+  const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
   return static_cast<int>(std::max<std::chrono::milliseconds::rep>(left.count(), 0));
 }
 
@@ -290,8 +283,8 @@ int milliseconds_until(std::chrono::steady_clock::time_point deadline) {
 PixelFormat parse_pixel_format(std::string_view name) {
   std::string upper(name);
   for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  for (PixelFormat format : {PixelFormat::kAuto, PixelFormat::kGrey, PixelFormat::kNv12,
-                             PixelFormat::kYuyv, PixelFormat::kMjpeg}) {
+  for (PixelFormat format :
+       {PixelFormat::kAuto, PixelFormat::kGrey, PixelFormat::kNv12, PixelFormat::kYuyv, PixelFormat::kMjpeg}) {
     std::string known(pixel_format_name(format));
     for (char& c : known) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
     if (upper == known) return format;
@@ -369,11 +362,9 @@ GrabStatus V4l2Camera::grab(Frame& frame, std::chrono::milliseconds timeout) {
 
 GrabStatus V4l2Camera::deliver(const v4l2_buffer& buffer, Frame& frame) {
   const std::uint64_t sequence = sequence_for(buffer.sequence);
-  const bool complete = !(buffer.flags & V4L2_BUF_FLAG_ERROR) &&
-                        buffer.bytesused >= minimum_image_bytes(negotiated_) &&
+  const bool complete = !(buffer.flags & V4L2_BUF_FLAG_ERROR) && buffer.bytesused >= minimum_image_bytes(negotiated_) &&
                         buffer.bytesused <= stream_->buffers[buffer.index].length;
-  const cv::Mat gray =
-      complete ? luma_of(stream_->buffers[buffer.index].data, buffer.bytesused) : cv::Mat();
+  const cv::Mat gray = complete ? luma_of(stream_->buffers[buffer.index].data, buffer.bytesused) : cv::Mat();
   if (gray.empty()) {
     ++counters_.corrupt;
     return GrabStatus::kCorrupt;
@@ -412,14 +403,12 @@ cv::Mat V4l2Camera::luma_of(const void* data, std::uint32_t bytes_used) {
     case PixelFormat::kNv12:  // the Y plane comes first, full size
       return cv::Mat(height, width, CV_8UC1, pixels, negotiated_.bytes_per_line);
     case PixelFormat::kYuyv:  // Y0 U Y1 V: luma is channel 0 of two-channel pixels
-      cv::extractChannel(cv::Mat(height, width, CV_8UC2, pixels, negotiated_.bytes_per_line),
-                         luma_, 0);
+      cv::extractChannel(cv::Mat(height, width, CV_8UC2, pixels, negotiated_.bytes_per_line), luma_, 0);
       return luma_;
     case PixelFormat::kMjpeg:
       // A fresh image per frame: imdecode into an existing Mat leaves it untouched when the
       // data is not a JPEG at all, which would pass a stale frame off as new.
-      return cv::imdecode(cv::Mat(1, static_cast<int>(bytes_used), CV_8UC1, pixels),
-                          cv::IMREAD_GRAYSCALE);
+      return cv::imdecode(cv::Mat(1, static_cast<int>(bytes_used), CV_8UC1, pixels), cv::IMREAD_GRAYSCALE);
     case PixelFormat::kAuto: break;
   }
   throw std::logic_error("stream without a concrete pixel format");

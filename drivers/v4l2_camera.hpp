@@ -47,8 +47,8 @@ struct V4l2Options {
   /// kAuto picks the first the device offers of GREY, NV12, YUYV, MJPEG: the ones whose
   /// luma plane needs no copy come first, JPEG decoding last.
   PixelFormat format = PixelFormat::kAuto;
-  unsigned width = 0;   // 0 keeps the device's current size
-  unsigned height = 0;  // 0 keeps the device's current size
+  unsigned width = 0;     // 0 keeps the device's current size
+  unsigned height = 0;    // 0 keeps the device's current size
   double frame_rate = 0;  // frames per second; 0 keeps the device's current rate
   unsigned buffer_count = 4;
   std::chrono::milliseconds reconnect_initial{100};

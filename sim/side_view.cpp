@@ -21,10 +21,10 @@ struct Keyframe {
   std::string_view pose;
 };
 constexpr Keyframe kScript[] = {
-    {0.0, "neutral"},   {0.6, "neutral"},     {1.0, "W_100"},     {1.4, "W_100"},      {1.8, "neutral"},
-    {2.2, "BigAah_080"}, {2.6, "neutral"},    {3.0, "Ooh-Q_050"}, {3.4, "Oh_100"},     {3.8, "Aah_100"},
-    {4.2, "Ooh-Q_100"}, {4.6, "Ooh-Q_100"},   {5.0, "Eee_100"},   {5.4, "R_070"},      {5.8, "B-M-P_100"},
-    {6.2, "Ch-J-Sh_100"}, {6.6, "F-V_100"},   {7.0, "W_060"},     {7.4, "Ooh-Q_030"},  {7.8, "neutral"},
+    {0.0, "neutral"},     {0.6, "neutral"},   {1.0, "W_100"},     {1.4, "W_100"},     {1.8, "neutral"},
+    {2.2, "BigAah_080"},  {2.6, "neutral"},   {3.0, "Ooh-Q_050"}, {3.4, "Oh_100"},    {3.8, "Aah_100"},
+    {4.2, "Ooh-Q_100"},   {4.6, "Ooh-Q_100"}, {5.0, "Eee_100"},   {5.4, "R_070"},     {5.8, "B-M-P_100"},
+    {6.2, "Ch-J-Sh_100"}, {6.6, "F-V_100"},   {7.0, "W_060"},     {7.4, "Ooh-Q_030"}, {7.8, "neutral"},
     {8.4, "neutral"},
 };
 
@@ -62,8 +62,7 @@ ImageProjection side_projection(const SyntheticHead& head, const SideViewOptions
     hi = hi.cwiseMax(pose.vertices.rowwise().maxCoeff());
   }
   Eigen::Matrix3Xf corners(3, 8);
-  for (int k = 0; k < 8; ++k)
-    corners.col(k) << (k & 1 ? hi : lo).x(), (k & 2 ? hi : lo).y(), (k & 4 ? hi : lo).z();
+  for (int k = 0; k < 8; ++k) corners.col(k) << (k & 1 ? hi : lo).x(), (k & 2 ? hi : lo).y(), (k & 4 ? hi : lo).z();
   return fit_projection(corners, {options.yaw_degrees, options.frame_size, options.margin});
 }
 

@@ -55,17 +55,15 @@ void to_gray(const cv::Mat& decoded, cv::Mat& gray) {
 
 bool is_image_file_name(const std::filesystem::path& path) {
   static constexpr std::array<std::string_view, 8> kExtensions{".png", ".jpg", ".jpeg", ".bmp",
-                                                               ".pgm", ".ppm", ".tif", ".tiff"};
+                                                               ".pgm", ".ppm", ".tif",  ".tiff"};
   return std::ranges::find(kExtensions, lower_case(path.extension().string())) != kExtensions.end();
 }
 
 SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options) : options_(std::move(options)) {
   const auto& input = options_.input;
   std::error_code ec;
-  if (!std::filesystem::exists(input, ec))
-    throw SourceError(input.string() + ": no such file or folder");
-  if (!(options_.image_frame_rate > 0))
-    throw SourceError(input.string() + ": the image frame rate must be positive");
+  if (!std::filesystem::exists(input, ec)) throw SourceError(input.string() + ": no such file or folder");
+  if (!(options_.image_frame_rate > 0)) throw SourceError(input.string() + ": the image frame rate must be positive");
 
   if (std::filesystem::is_directory(input, ec)) {
     kind_ = Kind::kImages;
@@ -90,9 +88,9 @@ void SimulatedCamera::open_video() {
   if (!capture_.open(video_path_, cv::CAP_FFMPEG))
     throw SourceError(video_path_ + ": not a video or image that can be decoded");
   const double fps = capture_.get(cv::CAP_PROP_FPS);
-  frame_rate_ = options_.replay_rate > 0 ? options_.replay_rate
-               : std::isfinite(fps) && fps > 0 ? fps
-                                               : options_.image_frame_rate;
+  frame_rate_ = options_.replay_rate > 0        ? options_.replay_rate
+                : std::isfinite(fps) && fps > 0 ? fps
+                                                : options_.image_frame_rate;
   const double count = capture_.get(cv::CAP_PROP_FRAME_COUNT);
   expected_frames_ = std::isfinite(count) && count > 0 ? static_cast<std::int64_t>(count) : 0;
 }

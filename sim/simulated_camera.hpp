@@ -22,12 +22,12 @@ struct SimulatedCameraOptions {
   /// handling of a misbehaving camera can be tested without one. 0 disables each fault.
   /// Counts are of frames the camera would have delivered.
   struct FaultInjection {
-    int drop_every = 0;        // every Nth frame is skipped (a sequence gap, as a real camera shows)
-    int stall_every = 0;       // the frame after every Nth arrives `stall` late
+    int drop_every = 0;   // every Nth frame is skipped (a sequence gap, as a real camera shows)
+    int stall_every = 0;  // the frame after every Nth arrives `stall` late
     std::chrono::milliseconds stall{0};
-    int disconnect_after = 0;  // after N frames the camera reports kDisconnected for `reconnect`,
+    int disconnect_after = 0;                // after N frames the camera reports kDisconnected for `reconnect`,
     std::chrono::milliseconds reconnect{0};  // then delivers again (once per replay)
-    int corrupt_every = 0;     // every Nth frame is kCorrupt
+    int corrupt_every = 0;                   // every Nth frame is kCorrupt
   };
 
   std::filesystem::path input;   // video file, image file, or folder of images
@@ -76,7 +76,7 @@ class SimulatedCamera : public FrameSource {
 
   SimulatedCameraOptions options_;
   Kind kind_;
-  std::string video_path_;               // `source` of video frames
+  std::string video_path_;  // `source` of video frames
   std::vector<std::filesystem::path> images_;
   std::vector<std::string> image_names_;  // `source` of image frames (file names)
   cv::Mat single_image_;                  // a lone image is decoded once, up front
@@ -90,7 +90,7 @@ class SimulatedCamera : public FrameSource {
   std::int64_t position_ = 0;   // index of the next frame within the recording
   std::uint64_t sequence_ = 0;  // next sequence number, never reset by looping
   bool ended_ = false;
-  std::int64_t start_ns_ = 0;  // real-time pacing: deadline of frame n = start + n * period
+  std::int64_t start_ns_ = 0;         // real-time pacing: deadline of frame n = start + n * period
   std::int64_t frames_read_ = 0;      // fault injection: frames read from the recording
   std::int64_t outage_until_ns_ = 0;  // fault injection: end of a disconnect or stall, 0 = none
   GrabStatus outage_status_ = GrabStatus::kTimeout;

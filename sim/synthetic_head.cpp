@@ -13,12 +13,12 @@ namespace {
 
 // Proportions: adult means from Farkas, "Anthropometry of the Head and Face" (2nd ed.,
 // 1994), rounded. The nasion is the origin.
-constexpr float kStomionY = -74;       // n–sn 53 mm + sn–sto 21 mm
-constexpr float kInnerCornerX = 23;    // where the lips part; the commissure is 2 mm further out
-constexpr float kMouthHalfWidth = 25;  // ch–ch 50 mm
+constexpr float kStomionY = -74;         // n–sn 53 mm + sn–sto 21 mm
+constexpr float kInnerCornerX = 23;      // where the lips part; the commissure is 2 mm further out
+constexpr float kMouthHalfWidth = 25;    // ch–ch 50 mm
 constexpr float kUpperVermilion = 8.5f;  // ls–sto ≈ 8–9 mm
 constexpr float kLowerVermilion = 9.5f;  // sto–li ≈ 9–10 mm
-constexpr float kEyeCentreX = 30.5f;   // midway between en (en–en 32 mm) and ex (ex–ex 90 mm)
+constexpr float kEyeCentreX = 30.5f;     // midway between en (en–en 32 mm) and ex (ex–ex 90 mm)
 constexpr float kEyeCentreY = -9;
 constexpr float kEyeHalfWidth = 14.5f;  // ex–en ≈ 29 mm
 constexpr float kEyeHalfHeight = 5.0f;  // palpebral fissure height ≈ 10 mm
@@ -69,11 +69,10 @@ struct ProfilePoint {
 // Top of the forehead, over the brows, nose and lips, chin, then back under the jaw.
 // Base profile only: the nose and the lip volume are features added on top.
 constexpr ProfilePoint kProfile[] = {
-    {72, -16, 62, 52},   {52, -5, 65, 58},    {32, 1, 67, 62},    {14, 3, 68, 64},
-    {0, 1, 69, 66},      {-20, 2, 70, 70},    {-40, 3, 70, 72},   {-53, 4, 68, 72},
-    {-64, 4.5f, 65, 70}, {-74, 4, 62, 68},    {-84, 2.5f, 59, 66}, {-95, 0, 56, 62},
-    {-106, -1, 52, 56},  {-116, -4, 47, 50},  {-122, -12, 45, 44}, {-126, -26, 45, 34},
-    {-127, -38, 45, 26},
+    {72, -16, 62, 52},   {52, -5, 65, 58},    {32, 1, 67, 62},    {14, 3, 68, 64},     {0, 1, 69, 66},
+    {-20, 2, 70, 70},    {-40, 3, 70, 72},    {-53, 4, 68, 72},   {-64, 4.5f, 65, 70}, {-74, 4, 62, 68},
+    {-84, 2.5f, 59, 66}, {-95, 0, 56, 62},    {-106, -1, 52, 56}, {-116, -4, 47, 50},  {-122, -12, 45, 44},
+    {-126, -26, 45, 34}, {-127, -38, 45, 26},
 };
 constexpr int kGnathionKnot = 13;  // rows past this knot are under the chin
 
@@ -87,19 +86,17 @@ ProfilePoint profile_at(float t) {
   const auto& p2 = kProfile[i + 1];
   const auto& p3 = kProfile[std::min(i + 2, n - 1)];
   const auto cr = [s](float a, float b, float c, float d) {
-    return 0.5f * (2 * b + (c - a) * s + (2 * a - 5 * b + 4 * c - d) * s * s +
-                   (3 * b - a - 3 * c + d) * s * s * s);
+    return 0.5f * (2 * b + (c - a) * s + (2 * a - 5 * b + 4 * c - d) * s * s + (3 * b - a - 3 * c + d) * s * s * s);
   };
   return {cr(p0.y, p1.y, p2.y, p3.y), cr(p0.z, p1.z, p2.z, p3.z),
-          cr(p0.half_width, p1.half_width, p2.half_width, p3.half_width),
-          cr(p0.depth, p1.depth, p2.depth, p3.depth)};
+          cr(p0.half_width, p1.half_width, p2.half_width, p3.half_width), cr(p0.depth, p1.depth, p2.depth, p3.depth)};
 }
 
 /// Nose: a ridge whose height over the base profile rises from the nasion to the tip
 /// (pronasale, 43 mm below n, ≈ 20 mm in front of the subnasale) and falls to the
 /// subnasale; nose width al–al ≈ 34 mm (Farkas).
 float nose(float x, float y) {
-  constexpr Knot kHeight[] = {{-56, 0},  {-53, 1},  {-50, 7},   {-47, 15}, {-43, 19},
+  constexpr Knot kHeight[] = {{-56, 0},  {-53, 1},  {-50, 7},    {-47, 15}, {-43, 19},
                               {-38, 17}, {-27, 12}, {-12, 6.5f}, {0, 1.5f}, {8, 0}};
   constexpr Knot kHalfWidth[] = {{-53, 9}, {-47, 11}, {-42, 9}, {-35, 7}, {-20, 6}, {0, 6}, {8, 7}};
   const float height = interpolate(kHeight, y);
@@ -307,10 +304,12 @@ std::int32_t nearest_vertex(const Eigen::Matrix3Xf& vertices, const std::vector<
 
 NeutralHead build_neutral_head() {
   const std::vector<float> rows = row_parameters();
-  const int stomion_row = static_cast<int>(
-      std::min_element(rows.begin(), rows.end(), [](float a, float b) {
-        return std::abs(profile_at(a).y - kStomionY) < std::abs(profile_at(b).y - kStomionY);
-      }) - rows.begin());
+  const int stomion_row = static_cast<int>(std::min_element(rows.begin(), rows.end(),
+                                                            [](float a, float b) {
+                                                              return std::abs(profile_at(a).y - kStomionY) <
+                                                                     std::abs(profile_at(b).y - kStomionY);
+                                                            }) -
+                                           rows.begin());
   const std::vector<float> columns = column_angles(profile_at(rows[stomion_row]));
   const int num_rows = static_cast<int>(rows.size()), num_columns = static_cast<int>(columns.size());
   const int midline = num_columns / 2;
@@ -529,8 +528,7 @@ Eigen::Vector3f articulate(const Eigen::Vector3f& p, const VertexWeights& w, con
   const float angle = w.jaw * a.jaw_degrees * std::numbers::pi_v<float> / 180;
   const Eigen::Vector3f hinge{q.x(), kHingeY, kHingeZ};
   const Eigen::Vector3f glide{0, -0.1f, 0.35f};  // mm per degree of opening
-  return hinge + Eigen::AngleAxisf(angle, Eigen::Vector3f::UnitX()) * (q - hinge) +
-         glide * (w.jaw * a.jaw_degrees);
+  return hinge + Eigen::AngleAxisf(angle, Eigen::Vector3f::UnitX()) * (q - hinge) + glide * (w.jaw * a.jaw_degrees);
 }
 
 Eigen::Matrix3Xf articulate_all(const NeutralHead& head, const Articulation& a) {
@@ -554,8 +552,8 @@ SyntheticHead generate_synthetic_head(HeadPoseSet set) {
   const int first_percent = set == HeadPoseSet::Full161 ? 10 : 100;
   for (std::string_view viseme : kVisemeNames)
     for (int percent = first_percent; percent <= 100; percent += 10)
-      out.poses.push_back({pose_name(viseme, percent),
-                           articulate_all(head, scaled(articulation(viseme), percent / 100.0f))});
+      out.poses.push_back(
+          {pose_name(viseme, percent), articulate_all(head, scaled(articulation(viseme), percent / 100.0f))});
   return out;
 }
 

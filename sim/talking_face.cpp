@@ -22,11 +22,10 @@ struct Keyframe {
   MouthPose pose;
 };
 constexpr Keyframe kScript[] = {
-    {0.0, {0, 0, 0}},      {0.6, {0, 0, 0}},      {1.0, {0.6, 0, 0}},    {1.3, {0.2, 0, 0}},
-    {1.7, {1.0, 0, 0}},    {2.1, {0, 0, 0}},      {2.6, {0, 0, 0}},      {3.0, {0.3, 1.0, 0}},
-    {3.4, {0.1, 0.6, 0}},  {3.8, {0.1, 0, 1.0}},  {4.3, {0.4, 0, 0.6}},  {4.7, {0, 0, 0}},
-    {5.3, {0, 0, 0}},      {5.7, {0.8, 0.3, 0}},  {6.0, {0.35, 0, 0}},   {6.4, {0.2, 0.8, 0}},
-    {6.8, {0.5, 0, 0.5}},  {7.1, {0.05, 0, 0.3}}, {7.5, {0.7, 0, 0}},    {7.9, {0, 0, 0}},
+    {0.0, {0, 0, 0}},     {0.6, {0, 0, 0}},     {1.0, {0.6, 0, 0}},    {1.3, {0.2, 0, 0}},   {1.7, {1.0, 0, 0}},
+    {2.1, {0, 0, 0}},     {2.6, {0, 0, 0}},     {3.0, {0.3, 1.0, 0}},  {3.4, {0.1, 0.6, 0}}, {3.8, {0.1, 0, 1.0}},
+    {4.3, {0.4, 0, 0.6}}, {4.7, {0, 0, 0}},     {5.3, {0, 0, 0}},      {5.7, {0.8, 0.3, 0}}, {6.0, {0.35, 0, 0}},
+    {6.4, {0.2, 0.8, 0}}, {6.8, {0.5, 0, 0.5}}, {7.1, {0.05, 0, 0.3}}, {7.5, {0.7, 0, 0}},   {7.9, {0, 0, 0}},
     {8.5, {0, 0, 0}},
 };
 
@@ -41,17 +40,28 @@ MouthPose interpolate(const MouthPose& a, const MouthPose& b, double t) {
 // ears, so the chin moves most, the lower lip nearly as much, the corners a third.
 double jaw_weight(int i) {
   switch (i) {
-    case 3: case 13: return 0.12;
-    case 4: case 12: return 0.35;
-    case 5: case 11: return 0.6;
-    case 6: case 10: return 0.8;
-    case 7: case 9: return 0.95;
+    case 3:
+    case 13: return 0.12;
+    case 4:
+    case 12: return 0.35;
+    case 5:
+    case 11: return 0.6;
+    case 6:
+    case 10: return 0.8;
+    case 7:
+    case 9: return 0.95;
     case 8: return 1.0;
-    case 48: case 54: case 60: case 64: return 0.35;  // corners
-    case 55: case 59: return 0.55;
-    case 56: case 58: return 0.8;
+    case 48:
+    case 54:
+    case 60:
+    case 64: return 0.35;  // corners
+    case 55:
+    case 59: return 0.55;
+    case 56:
+    case 58: return 0.8;
     case 57: return 0.85;
-    case 65: case 67: return 0.75;
+    case 65:
+    case 67: return 0.75;
     case 66: return 0.9;
     default: return 0;
   }
@@ -153,9 +163,11 @@ void rasterize_backward_map(const std::array<cv::Point2d, 3>& source, const std:
   const cv::Matx23d to_source = cv::getAffineTransform(dst, src);
 
   const int x0 = std::max(0, static_cast<int>(std::floor(std::min({target[0].x, target[1].x, target[2].x}))));
-  const int x1 = std::min(map_x.cols - 1, static_cast<int>(std::ceil(std::max({target[0].x, target[1].x, target[2].x}))));
+  const int x1 =
+      std::min(map_x.cols - 1, static_cast<int>(std::ceil(std::max({target[0].x, target[1].x, target[2].x}))));
   const int y0 = std::max(0, static_cast<int>(std::floor(std::min({target[0].y, target[1].y, target[2].y}))));
-  const int y1 = std::min(map_x.rows - 1, static_cast<int>(std::ceil(std::max({target[0].y, target[1].y, target[2].y}))));
+  const int y1 =
+      std::min(map_x.rows - 1, static_cast<int>(std::ceil(std::max({target[0].y, target[1].y, target[2].y}))));
   constexpr double kEdgeTolerance = 1e-6;  // pixels on a shared edge belong to both triangles
   for (int y = y0; y <= y1; ++y) {
     auto* mx = map_x.ptr<float>(y);
@@ -228,8 +240,8 @@ std::vector<cv::Point> smooth_ring(const std::vector<Vec2>& ring) {
     const Vec2& p3 = ring[(i + 2) % n];
     for (int k = 0; k < kSamplesPerSegment; ++k) {
       const double t = static_cast<double>(k) / kSamplesPerSegment, t2 = t * t, t3 = t2 * t;
-      const Vec2 p = 0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t2 +
-                            (3 * p1 - p0 - 3 * p2 + p3) * t3);
+      const Vec2 p =
+          0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t2 + (3 * p1 - p0 - 3 * p2 + p3) * t3);
       curve.emplace_back(cvRound(p.x() * 8), cvRound(p.y() * 8));
     }
   }
@@ -304,8 +316,7 @@ Landmarks2D pose_mouth(const Landmarks2D& neutral, const MouthPose& pose) {
   const double d = normaliser(neutral);
   const Vec2 u = (point(neutral, ibug::kLeftEyeOuter) - point(neutral, ibug::kRightEyeOuter)).normalized();
   const Vec2 v(-u.y(), u.x());  // image y grows downwards, so this points down the face
-  const Vec2 mouth_centre =
-      (point(neutral, ibug::kMouthCornerRight) + point(neutral, ibug::kMouthCornerLeft)) / 2;
+  const Vec2 mouth_centre = (point(neutral, ibug::kMouthCornerRight) + point(neutral, ibug::kMouthCornerLeft)) / 2;
   Landmarks2D moved = neutral;
   for (int i = 0; i < kNumLandmarks; ++i) {
     const double across = (point(neutral, i) - mouth_centre).dot(u) / d;
@@ -361,8 +372,8 @@ cv::Mat TalkingFace::render(const Landmarks2D& target) const {
   const auto destination = control_points(target);
   for (const auto& [a, b, c] : triangles_) {
     if (source[a] == destination[a] && source[b] == destination[b] && source[c] == destination[c]) continue;
-    rasterize_backward_map({source[a], source[b], source[c]}, {destination[a], destination[b], destination[c]},
-                           map_x, map_y);
+    rasterize_backward_map({source[a], source[b], source[c]}, {destination[a], destination[b], destination[c]}, map_x,
+                           map_y);
   }
   cv::Mat frame;
   cv::remap(face_, frame, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);

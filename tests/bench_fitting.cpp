@@ -38,9 +38,9 @@ std::vector<Landmarks2D> bench_frames(const MorphableModel& model) {
   std::normal_distribution<double> noise(0.0, 1.0);
   std::vector<Landmarks2D> frames;
   for (int frame = 0; frame < 64; ++frame) {
-    const Eigen::VectorXd alpha = model.num_poses() > 0
-                                      ? Eigen::VectorXd(model.pose_coefficients.col(frame % model.num_poses()).cast<double>())
-                                      : Eigen::VectorXd(testing::random_coefficients(model.num_components(), frame));
+    const Eigen::VectorXd alpha =
+        model.num_poses() > 0 ? Eigen::VectorXd(model.pose_coefficients.col(frame % model.num_poses()).cast<double>())
+                              : Eigen::VectorXd(testing::random_coefficients(model.num_components(), frame));
     Landmarks2D landmarks = testing::project(camera, testing::model_landmarks(model, alpha));
     for (double& value : landmarks.reshaped()) value += noise(rng);
     frames.push_back(landmarks);

@@ -6,15 +6,15 @@
 #include <chrono>
 #include <cstring>
 #include <fcntl.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <sys/un.h>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <poll.h>
 #include <signal.h>
 #include <spawn.h>
 #include <string>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -95,7 +95,6 @@ class DaemonProcess {
   pid_t pid_ = -1;
   bool exited_ = false;
 };
-
 
 /// A stand-in for systemd's notification socket; pass environment() to the daemon.
 class NotifySocket {

@@ -60,8 +60,8 @@ void FakeV4l2Device::adjust_format(v4l2_pix_format& pix) const {
   const auto distance = [&](cv::Size size) {
     return std::abs(size.width - int(pix.width)) + std::abs(size.height - int(pix.height));
   };
-  const cv::Size nearest = *std::ranges::min_element(
-      config_.sizes, [&](cv::Size a, cv::Size b) { return distance(a) < distance(b); });
+  const cv::Size nearest =
+      *std::ranges::min_element(config_.sizes, [&](cv::Size a, cv::Size b) { return distance(a) < distance(b); });
   pix.width = unsigned(nearest.width);
   pix.height = unsigned(nearest.height);
   pix.field = V4L2_FIELD_NONE;
@@ -185,23 +185,20 @@ int FakeV4l2Device::set_parameters(v4l2_streamparm& parameters) {
   const v4l2_fract interval = parameters.parm.capture.timeperframe;
   if (interval.numerator != 0 && interval.denominator != 0) {
     const double wanted = double(interval.denominator) / interval.numerator;
-    state_.frame_rate = *std::ranges::min_element(config_.frame_rates, [&](unsigned a, unsigned b) {
-      return std::abs(a - wanted) < std::abs(b - wanted);
-    });
+    state_.frame_rate = *std::ranges::min_element(
+        config_.frame_rates, [&](unsigned a, unsigned b) { return std::abs(a - wanted) < std::abs(b - wanted); });
   }
   return get_parameters(parameters);
 }
 
 bool FakeV4l2Device::buffers_mapped() const {
-  return std::ranges::any_of(state_.buffers,
-                             [](const Buffer& buffer) { return buffer.memory.use_count() > 1; });
+  return std::ranges::any_of(state_.buffers, [](const Buffer& buffer) { return buffer.memory.use_count() > 1; });
 }
 
 int FakeV4l2Device::request_buffers(int fd, v4l2_requestbuffers& request) {
   if (request.type != V4L2_BUF_TYPE_VIDEO_CAPTURE || request.memory != V4L2_MEMORY_MMAP)
     return fail(EINVAL, "REQBUFS with a type or memory other than capture/MMAP");
-  if (state_.owner_fd != -1 && state_.owner_fd != fd)
-    return fail(EBUSY, "REQBUFS on a device another fd owns");
+  if (state_.owner_fd != -1 && state_.owner_fd != fd) return fail(EBUSY, "REQBUFS on a device another fd owns");
   if (state_.streaming) return fail(EBUSY, "REQBUFS while streaming");
   if (buffers_mapped()) return fail(EBUSY, "REQBUFS while buffers are still mapped");
   release_buffers();
@@ -278,8 +275,7 @@ int FakeV4l2Device::dequeue_buffer(int fd, v4l2_buffer& buffer) {
 }
 
 int FakeV4l2Device::stream_on(const v4l2_buf_type& type) {
-  if (type != V4L2_BUF_TYPE_VIDEO_CAPTURE || state_.buffers.empty())
-    return fail(EINVAL, "STREAMON without buffers");
+  if (type != V4L2_BUF_TYPE_VIDEO_CAPTURE || state_.buffers.empty()) return fail(EINVAL, "STREAMON without buffers");
   state_.streaming = true;
   return 0;
 }
@@ -294,8 +290,7 @@ int FakeV4l2Device::stream_off(const v4l2_buf_type& type) {
   return 0;
 }
 
-void* FakeV4l2Device::mmap(void* address, std::size_t length, int protection, int flags, int fd,
-                           off_t offset) {
+void* FakeV4l2Device::mmap(void* address, std::size_t length, int protection, int flags, int fd, off_t offset) {
   const auto file = fds_.find(fd);
   if (file == fds_.end()) return fail_mapping(EBADF, "mmap of an fd that is not open");
   if (!plugged_ || file->second.generation != generation_) return fail_mapping(ENODEV);
@@ -364,8 +359,8 @@ void FakeV4l2Device::complete(Buffer& buffer, std::uint32_t bytes_used, std::uin
   buffer.timestamp = {now.tv_sec, now.tv_nsec / 1000};
   last_timestamp_ns_ = std::int64_t{now.tv_sec} * 1'000'000'000 + std::int64_t{now.tv_nsec / 1000} * 1000;
   buffer.bytes_used = bytes_used;
-  buffer.flags = flags | (config_.monotonic_timestamps ? V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC
-                                                       : V4L2_BUF_FLAG_TIMESTAMP_UNKNOWN);
+  buffer.flags =
+      flags | (config_.monotonic_timestamps ? V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC : V4L2_BUF_FLAG_TIMESTAMP_UNKNOWN);
   buffer.state = BufferState::kDone;
   const auto index = unsigned(&buffer - state_.buffers.data());
   state_.done.push_back(index);

@@ -32,7 +32,7 @@ class FakeV4l2Device final : public SystemCalls {
     std::string path = "/dev/video-fake";
     std::vector<std::uint32_t> formats = {V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_MJPEG};
     std::vector<cv::Size> sizes = {{320, 240}, {160, 120}};  // the first is the power-on size
-    unsigned row_padding = 0;  // bytes each row carries beyond its pixels (bytesperline)
+    unsigned row_padding = 0;                                // bytes each row carries beyond its pixels (bytesperline)
     std::uint32_t capabilities = V4L2_CAP_VIDEO_CAPTURE | V4L2_CAP_STREAMING;
     std::vector<unsigned> frame_rates = {30, 15};  // the first is the power-on rate
     unsigned max_buffers = 8;
@@ -49,8 +49,7 @@ class FakeV4l2Device final : public SystemCalls {
   int open(const char* path, int flags) override;
   int close(int fd) override;
   int ioctl(int fd, unsigned long request, void* argument) override;
-  void* mmap(void* address, std::size_t length, int protection, int flags, int fd,
-             off_t offset) override;
+  void* mmap(void* address, std::size_t length, int protection, int flags, int fd, off_t offset) override;
   int munmap(void* address, std::size_t length) override;
   int poll(pollfd* fds, nfds_t count, int timeout_ms) override;
 

@@ -15,8 +15,9 @@ inline const std::filesystem::path kClip = std::filesystem::path(LIPDRIVE_FIXTUR
 /// [model] and [camera] of a daemon configuration replaying kClip in real time at 60 fps,
 /// looped; more [camera] keys may follow.
 inline std::string sim_camera_at_60_fps() {
-  return fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\nreal_time = true\nloop = true\nreplay_fps = 60\n",
-                     kModel.string(), kClip.string());
+  return fmt::format(
+      "[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\nreal_time = true\nloop = true\nreplay_fps = 60\n",
+      kModel.string(), kClip.string());
 }
 
 }  // namespace lipdrive::test

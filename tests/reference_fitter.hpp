@@ -32,8 +32,9 @@ inline MorphableModel random_model(int num_vertices, int num_components, unsigne
   vertices.row(1) *= 60.0;  // height
   vertices.row(2) *= 20.0;  // depth
   model.mean = Eigen::Map<Eigen::VectorXd>(vertices.data(), 3 * num_vertices).cast<float>();
-  const Eigen::MatrixXd q = Eigen::HouseholderQR<Eigen::MatrixXd>(random_matrix(3 * num_vertices, num_components))
-                                .householderQ() * Eigen::MatrixXd::Identity(3 * num_vertices, num_components);
+  const Eigen::MatrixXd q =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(random_matrix(3 * num_vertices, num_components)).householderQ() *
+      Eigen::MatrixXd::Identity(3 * num_vertices, num_components);
   model.basis = q.cast<float>();
   model.stddev.resize(num_components);
   for (int k = 0; k < num_components; ++k) model.stddev(k) = static_cast<float>(8.0 * std::pow(0.85, k));
@@ -57,9 +58,10 @@ inline Eigen::Matrix<double, kMaxFitComponents, 1> random_coefficients(int num_c
 /// rotation (yaw, pitch, roll), y flipped to image rows, principal point (320, 240).
 inline Eigen::Matrix<double, 3, 4> test_camera(double px_per_mm, double yaw = 0.2, double pitch = -0.1,
                                                double roll = 0.05) {
-  const Eigen::Matrix3d rotation = (Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()) *
-                                    Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()) *
-                                    Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY())).toRotationMatrix();
+  const Eigen::Matrix3d rotation =
+      (Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()) *
+       Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
   Eigen::Matrix<double, 3, 4> camera = Eigen::Matrix<double, 3, 4>::Zero();
   camera.row(0).head<3>() = px_per_mm * rotation.row(0);
   camera.row(1).head<3>() = -px_per_mm * rotation.row(1);

@@ -94,7 +94,8 @@ class PtyPair {
 // The far end of a pty pair: accumulates whatever arrives.
 class PtyReader {
  public:
-  explicit PtyReader(const std::filesystem::path& device) : fd_(::open(device.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC)) {
+  explicit PtyReader(const std::filesystem::path& device)
+      : fd_(::open(device.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC)) {
     if (fd_ < 0) throw std::runtime_error("cannot open " + device.string());
     termios options{};
     ::tcgetattr(fd_, &options);
@@ -146,9 +147,10 @@ inline FrameStream decode_frames(const Bytes& bytes) {
       ++at;
       continue;
     }
-    DecodedFrame decoded{le16(frame + 2), static_cast<std::uint32_t>(le16(frame + 4) | le16(frame + 6) << 16),
-                         le16(frame + 8), {}};
-    for (std::size_t i = 10; i < 2 + length; i += 2) decoded.values.push_back(static_cast<std::int16_t>(le16(frame + i)));
+    DecodedFrame decoded{
+        le16(frame + 2), static_cast<std::uint32_t>(le16(frame + 4) | le16(frame + 6) << 16), le16(frame + 8), {}};
+    for (std::size_t i = 10; i < 2 + length; i += 2)
+      decoded.values.push_back(static_cast<std::int16_t>(le16(frame + i)));
     stream.frames.push_back(decoded);
     at += 2 + length + 2;
   }

@@ -1,11 +1,11 @@
 // The calibration round trip on a real talking face: `lipdrive calibrate` on a GRID take,
 // then the pipeline drives an open channel with that profile. The performer's mouth must use
 // the whole channel and come back to rest in the closing silence.
-#include "fixture_paths.hpp"
 #include "daemon_process.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
+#include "fixture_paths.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -50,12 +50,14 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
   const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_test_calibrate_{}", ::getpid());
   fs::create_directories(dir);
   const fs::path config = dir / "lipdrive.toml";
-  std::ofstream(config) << fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n[performer]\nprofiles_dir = \"{}\"\n",
-                                       kModel.string(), kTake.string(), dir.string());
+  std::ofstream(config) << fmt::format(
+      "[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n[performer]\nprofiles_dir = \"{}\"\n", kModel.string(),
+      kTake.string(), dir.string());
 
   // The first 15 tracked frames are the opening silence: the neutral pose.
-  const std::string command = fmt::format("{} calibrate --config {} --performer grid --input {} --neutral-frames 15 2>&1",
-                                          LIPDRIVE_BINARY, config.string(), kTake.string());
+  const std::string command =
+      fmt::format("{} calibrate --config {} --performer grid --input {} --neutral-frames 15 2>&1", LIPDRIVE_BINARY,
+                  config.string(), kTake.string());
   std::FILE* pipe = ::popen(command.c_str(), "r");
   ASSERT_NE(pipe, nullptr);
   std::string output;
@@ -77,9 +79,9 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
   take.input = kTake;
   take.real_time = true;  // no frame is dropped at 25 fps
   static const MorphableModel model = load_model_file(kModel);
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(take),
-                    std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor()),
-                    settings);
+  Pipeline pipeline(
+      std::make_unique<SimulatedCamera>(take),
+      std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor()), settings);
   pipeline.set_profile(profile);
   OpenChannelByFrame open;
   pipeline.add_output(open);

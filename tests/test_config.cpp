@@ -24,8 +24,8 @@ namespace fs = std::filesystem;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
 
-using test::kModel;
 using test::kClip;
+using test::kModel;
 
 class ConfigTest : public ::testing::Test {
  protected:
@@ -133,8 +133,9 @@ test::CommandRun run_lipdrive(const std::string& args) {
   return test::run_command(std::string(LIPDRIVE_BINARY) + " " + args);
 }
 
-constexpr const char* kJawChannel = "[[channels]]\nname = \"jaw\"\nsignal = \"open\"\nout_min = 1000\nout_max = 2000\n"
-                                    "neutral = 1100\nmax_slew_per_s = 4000\n";
+constexpr const char* kJawChannel =
+    "[[channels]]\nname = \"jaw\"\nsignal = \"open\"\nout_min = 1000\nout_max = 2000\n"
+    "neutral = 1100\nmax_slew_per_s = 4000\n";
 
 TEST_F(ConfigTest, ChannelsAndOutputsLoad) {
   write("", fmt::format("{}[[channels]]\nname = \"smile\"\nsignal = \"viseme_Eee\"\ninvert = true\n"

@@ -2,11 +2,11 @@
 // masters read the register map over RTU (a socat pty pair) and TCP while the daemon runs, a
 // reader on another pty pair decodes the framed serial protocol, and after SIGTERM the last
 // thing on the serial line is the neutral pose.
-#include "fixture_paths.hpp"
 #include "daemon_process.hpp"
 #include "drivers/modbus_link.hpp"
-#include "firmware_app/outputs/output.hpp"
 #include "firmware_app/outputs/modbus_server_output.hpp"
+#include "firmware_app/outputs/output.hpp"
+#include "fixture_paths.hpp"
 #include "serial_peers.hpp"
 
 #include <fmt/format.h>
@@ -56,7 +56,8 @@ TEST(DaemonOutputs, ModbusAndSerialFollowTheMouthAndEndNeutral) {
   const test::PtyPair rtu_line(dir.path() / "rtu");
   const int port = free_port();
   const fs::path config = dir.path() / "lipdrive.toml";
-  std::ofstream(config) << test::sim_camera_at_60_fps() << fmt::format(R"([status]
+  std::ofstream(config) << test::sim_camera_at_60_fps()
+                        << fmt::format(R"([status]
 print_interval_ms = 0
 [safety]
 hold_ms = 100
@@ -78,8 +79,7 @@ unit_id = 7
 mode = "framed"
 device = "{}"
 )",
-                                                                   kWidthNeutral, port, rtu_line.a.string(),
-                                                                   line.a.string());
+                                       kWidthNeutral, port, rtu_line.a.string(), line.a.string());
   test::DaemonProcess daemon(config, dir.path() / "stderr.txt", "--stats");
   ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
 

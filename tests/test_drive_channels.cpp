@@ -25,7 +25,8 @@ DriveSignals open_at(float value) {
 }
 
 TEST(DriveSignals, NamesRoundTripAndFollowTheVisemes) {
-  for (int s = 0; s < kNumSignals; ++s) EXPECT_EQ(parse_signal(signal_name(static_cast<Signal>(s))), static_cast<Signal>(s));
+  for (int s = 0; s < kNumSignals; ++s)
+    EXPECT_EQ(parse_signal(signal_name(static_cast<Signal>(s))), static_cast<Signal>(s));
   for (int v = 0; v < kNumVisemes; ++v)
     EXPECT_EQ(signal_name(viseme_signal(v)), "viseme_" + std::string(kVisemeNames[static_cast<std::size_t>(v)]));
   EXPECT_FALSE(parse_signal("mouth"));
@@ -172,7 +173,8 @@ TEST(ChannelBank, SmoothedChannelsFilterOnFrameTimesOnly) {
   std::array<double, 2> previous{};
   std::int64_t now = 0;
   for (int frame = 0; frame < 300; ++frame, now += kFrameNs) {
-    const auto values = bank.step(open_at(frame % 2 ? 0.52f : 0.48f), {.tracked = true, .now_ns = now, .frame_time_ns = now});
+    const auto values =
+        bank.step(open_at(frame % 2 ? 0.52f : 0.48f), {.tracked = true, .now_ns = now, .frame_time_ns = now});
     if (frame > 100) {
       raw_jitter += std::abs(values[0] - previous[0]);
       smooth_jitter += std::abs(values[1] - previous[1]);

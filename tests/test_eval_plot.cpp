@@ -44,8 +44,7 @@ class EvalPlotTest : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("lipdrive_" + std::string(test->name()) + "_" + std::to_string(::getpid()));
+    dir_ = fs::temp_directory_path() / ("lipdrive_" + std::string(test->name()) + "_" + std::to_string(::getpid()));
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
@@ -111,7 +110,7 @@ TEST_F(EvalPlotTest, EvalJsonMatchesHandComputedMetrics) {
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const auto report = nlohmann::json::parse(result.out);
 
-  EXPECT_EQ(report.at("frames_matched"), 4);  // frames 1-4
+  EXPECT_EQ(report.at("frames_matched"), 4);   // frames 1-4
   ASSERT_EQ(report.at("columns").size(), 2u);  // the measures both files have
 
   const auto& width = column_result(report, "width_2d");
@@ -137,8 +136,8 @@ TEST_F(EvalPlotTest, EvalWithAlignmentScoresOnlySpeechFrames) {
   const auto pred = write("pred.csv", kPredCsv);
   // Speech spans frames 2 and 3 only; frame 3 is untracked.
   const auto align = write("take.align", "0 2000 sil\n2000 4000 bin\n4000 6000 sp\n");
-  const RunResult result = run({"eval", "--truth", truth, "--pred", pred, "--align", align,
-                                "--columns", "width_2d", "--json"});
+  const RunResult result =
+      run({"eval", "--truth", truth, "--pred", pred, "--align", align, "--columns", "width_2d", "--json"});
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const auto report = nlohmann::json::parse(result.out);
   EXPECT_EQ(report.at("frames_matched"), 2);
@@ -156,8 +155,8 @@ TEST_F(EvalPlotTest, EvalComparesTwoProcessOutputsAsATable) {
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_THAT(result.out, HasSubstr("rmse_scaled"));
   // All seven measures of the process output, each on its 4 tracked frames.
-  for (const char* column : {"width_2d", "height_2d", "width_fit", "height_fit", "width_3d",
-                             "height_3d", "protrusion_3d"}) {
+  for (const char* column :
+       {"width_2d", "height_2d", "width_fit", "height_fit", "width_3d", "height_3d", "protrusion_3d"}) {
     EXPECT_THAT(result.out, HasSubstr(column));
   }
   EXPECT_THAT(result.out, HasSubstr("5 frames matched"));
@@ -171,8 +170,7 @@ TEST_F(EvalPlotTest, EvalErrorsNameTheProblem) {
   EXPECT_EQ(missing_file.exit_code, 66);
   EXPECT_THAT(missing_file.err, HasSubstr("nope.csv"));
 
-  const RunResult missing_column =
-      run({"eval", "--truth", truth, "--pred", pred, "--columns", "lip_gloss"});
+  const RunResult missing_column = run({"eval", "--truth", truth, "--pred", pred, "--columns", "lip_gloss"});
   EXPECT_EQ(missing_column.exit_code, 65);
   EXPECT_THAT(missing_column.err, HasSubstr("lip_gloss"));
 
@@ -293,8 +291,8 @@ TEST_F(EvalPlotTest, PlotWritesARequestedSizeImageWithOneColourPerFile) {
   const auto a = write("a.csv", sine_csv(0));
   const auto b = write("b.csv", sine_csv(1.5));
   const auto two = dir_ / "two.png";
-  const RunResult result = run({"plot", a, b, "--columns", "width_2d,height_2d", "--out", two,
-                                "--width", "640", "--height", "480", "--title", "two takes"});
+  const RunResult result = run({"plot", a, b, "--columns", "width_2d,height_2d", "--out", two, "--width", "640",
+                                "--height", "480", "--title", "two takes"});
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const cv::Mat image = cv::imread(two.string(), cv::IMREAD_COLOR);
   ASSERT_FALSE(image.empty());
@@ -312,8 +310,7 @@ TEST_F(EvalPlotTest, PlotWritesARequestedSizeImageWithOneColourPerFile) {
 
 TEST_F(EvalPlotTest, PlotOfAMissingColumnFails) {
   const auto a = write("a.csv", sine_csv(0));
-  const RunResult result =
-      run({"plot", a, "--columns", "protrusion_side", "--out", (dir_ / "x.png").string()});
+  const RunResult result = run({"plot", a, "--columns", "protrusion_side", "--out", (dir_ / "x.png").string()});
   EXPECT_EQ(result.exit_code, 65);
   EXPECT_THAT(result.err, HasSubstr("protrusion_side"));
   EXPECT_FALSE(fs::exists(dir_ / "x.png"));

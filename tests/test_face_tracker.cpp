@@ -1,9 +1,9 @@
 // The allocation-free ERT predictor against dlib's own, and the FaceTracker's
 // acquire -> track -> lose -> re-acquire cycle.
+#include "allocation_counter.hpp"
 #include "core/face_tracker.hpp"
 #include "core/shape_predictor.hpp"
 #include "firmware_app/cli/command_error.hpp"
-#include "allocation_counter.hpp"
 #include "shared_predictor.hpp"
 
 #include <dlib/image_processing.h>
@@ -96,7 +96,9 @@ void expect_matches_dlib(const cv::Mat& gray, const dlib::rectangle& rect, const
   }
 }
 
-std::vector<dlib::rectangle> detect(const cv::Mat& gray) { return dlib_detector()(dlib::cv_image<unsigned char>(gray)); }
+std::vector<dlib::rectangle> detect(const cv::Mat& gray) {
+  return dlib_detector()(dlib::cv_image<unsigned char>(gray));
+}
 
 TEST(ShapePredictor, MatchesDlibOnGridFrames) {
   int compared = 0;
@@ -107,7 +109,8 @@ TEST(ShapePredictor, MatchesDlibOnGridFrames) {
       ASSERT_FALSE(faces.empty()) << clip << " frame " << f;
       expect_matches_dlib(frames[f], faces.front(), std::string(clip) + " frame " + std::to_string(f));
       // A box that is shifted and partly outside the image: out-of-image pixels read 0.
-      expect_matches_dlib(frames[f], dlib::translate_rect(faces.front(), -static_cast<long>(faces.front().width()) / 2, 30),
+      expect_matches_dlib(frames[f],
+                          dlib::translate_rect(faces.front(), -static_cast<long>(faces.front().width()) / 2, 30),
                           std::string(clip) + " shifted box, frame " + std::to_string(f));
       ++compared;
     }
@@ -246,7 +249,10 @@ TEST(FaceTracker, SteadyStateTrackingAllocatesNothing) {
 
   test::count_allocations_on_this_thread(true);
   const long before_probe = test::allocation_count();
-  { std::vector<int> probe(3); ASSERT_EQ(probe.size(), 3u); }
+  {
+    std::vector<int> probe(3);
+    ASSERT_EQ(probe.size(), 3u);
+  }
   ASSERT_GT(test::allocation_count(), before_probe) << "the allocation counter does not count";
 
   for (std::size_t f = 1; f < frames.size(); ++f) {

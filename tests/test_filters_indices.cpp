@@ -108,20 +108,20 @@ TEST(OneEuroFilter, RejectsSettingsOutOfRange) {
 // lips set so that ls-li = lip_height and ch-ch = mouth_width.
 Landmarks2D hand_made_face(double lip_height, double mouth_width) {
   Landmarks2D p = Landmarks2D::Zero();
-  p.col(27) << 0, 0;      // n
-  p.col(8) << 0, 120;     // gn
-  p.col(0) << -65, 30;    // zy
+  p.col(27) << 0, 0;    // n
+  p.col(8) << 0, 120;   // gn
+  p.col(0) << -65, 30;  // zy
   p.col(16) << 65, 30;
-  p.col(4) << -50, 90;    // go
+  p.col(4) << -50, 90;  // go
   p.col(12) << 50, 90;
-  p.col(33) << 0, 50;     // sn
-  p.col(31) << -17, 48;   // al
+  p.col(33) << 0, 50;    // sn
+  p.col(31) << -17, 48;  // al
   p.col(35) << 17, 48;
-  p.col(36) << -45, 10;   // ex
+  p.col(36) << -45, 10;  // ex
   p.col(45) << 45, 10;
-  p.col(39) << -15, 10;   // en
+  p.col(39) << -15, 10;  // en
   p.col(42) << 15, 10;
-  p.col(51) << 0, 65;     // ls
+  p.col(51) << 0, 65;  // ls
   p.col(57) << 0, 65 + lip_height;
   p.col(48) << -mouth_width / 2, 72;  // ch
   p.col(54) << mouth_width / 2, 72;
@@ -130,15 +130,16 @@ Landmarks2D hand_made_face(double lip_height, double mouth_width) {
 
 TEST(FacialIndices, HandComputedDistancesAndIndices) {
   const FacialMeasures m = facial_measures(hand_made_face(18, 45));
-  EXPECT_DOUBLE_EQ(m.distances[0], 120);  // n-gn
-  EXPECT_DOUBLE_EQ(m.distances[1], 130);  // zy-zy
-  EXPECT_DOUBLE_EQ(m.distances[9], 45);   // ch-ch
-  EXPECT_DOUBLE_EQ(m.distances[12], 120 - 83);  // li-gn
-  EXPECT_DOUBLE_EQ(m.indices[0], 100 * 120.0 / 130);  // facial
+  EXPECT_DOUBLE_EQ(m.distances[0], 120);                                     // n-gn
+  EXPECT_DOUBLE_EQ(m.distances[1], 130);                                     // zy-zy
+  EXPECT_DOUBLE_EQ(m.distances[9], 45);                                      // ch-ch
+  EXPECT_DOUBLE_EQ(m.distances[12], 120 - 83);                               // li-gn
+  EXPECT_DOUBLE_EQ(m.indices[0], 100 * 120.0 / 130);                         // facial
   EXPECT_DOUBLE_EQ(m.indices[kVerticalMouthHeightIndex], 100 * 18.0 / 120);  // 15: middle
   EXPECT_DOUBLE_EQ(m.indices[kMouthWidthIndex], 100 * 45.0 / 90);            // 50: middle
   EXPECT_DOUBLE_EQ(m.indices[4], 100 * 34.0 / 50);                           // nasal: al-al / n-sn
-  for (int i = 0; i < kNumFacialIndices; ++i) EXPECT_LT(m.indices[i], 100) << kFacialIndices[i].name << ": smaller / larger";
+  for (int i = 0; i < kNumFacialIndices; ++i)
+    EXPECT_LT(m.indices[i], 100) << kFacialIndices[i].name << ": smaller / larger";
 }
 
 TEST(FacialIndices, ClassesOfTheMouthIndices) {

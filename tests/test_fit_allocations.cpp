@@ -27,7 +27,8 @@ TEST(FitAllocations, CounterCountsNewAndMalloc) {
 TEST(FitAllocations, FitAllocatesNothing) {
   test::count_allocations_on_this_thread(true);
   for (const int components : {12, 40}) {  // both compiled sizes
-    for (const LandmarkSet set : {LandmarkSet::F1, LandmarkSet::F2, LandmarkSet::F3, LandmarkSet::F4, LandmarkSet::F5}) {
+    for (const LandmarkSet set :
+         {LandmarkSet::F1, LandmarkSet::F2, LandmarkSet::F3, LandmarkSet::F4, LandmarkSet::F5}) {
       SCOPED_TRACE(::testing::Message() << landmark_set_name(set) << ", K = " << components);
       const MorphableModel model = testing::random_model(100, components, 1);
       const Landmarks2D landmarks = testing::project(

@@ -78,9 +78,7 @@ DriveFrame frame_at(std::int64_t time_ns, std::uint16_t status = kTrackingOk) {
 /// Keeps the log of a test in memory, so that tests can count messages.
 class CapturedLog {
  public:
-  CapturedLog()
-      : sink_(std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(100)),
-        previous_(spdlog::default_logger()) {
+  CapturedLog() : sink_(std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(100)), previous_(spdlog::default_logger()) {
     auto logger = std::make_shared<spdlog::logger>("test", sink_);
     logger->set_level(spdlog::level::debug);
     spdlog::set_default_logger(logger);
@@ -107,8 +105,7 @@ class GpioOutputTest : public ::testing::Test {
 
   /// Publishes every 20 ms (the slowest the output thread ticks) from `from_ns` until
   /// before `to_ns`, with `button` held at `level`; returns the next tick's time.
-  std::int64_t hold(const std::string& button, bool level, std::int64_t from_ns,
-                    std::int64_t to_ns) {
+  std::int64_t hold(const std::string& button, bool level, std::int64_t from_ns, std::int64_t to_ns) {
     chip.inputs[button] = level;
     std::int64_t now = from_ns;
     for (; now < to_ns; now += 20 * kMs) output.publish(frame_at(now, status));

@@ -31,7 +31,7 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
   // DESTDIR as well as the prefix: the configuration's destination is absolute (/etc/... or
   // <prefix>/etc/...), and nothing may land outside the temporary folder.
   const CommandRun install = run_command("DESTDIR=" + root.string() + " " + LIPDRIVE_CMAKE + " --install " +
-                                 LIPDRIVE_BUILD_DIR + " --prefix /opt/lipdrive");
+                                         LIPDRIVE_BUILD_DIR + " --prefix /opt/lipdrive");
   ASSERT_EQ(install.exit_code, 0) << install.output;
 
   std::ifstream manifest(fs::path(LIPDRIVE_BUILD_DIR) / "install_manifest.txt");

@@ -49,7 +49,7 @@ TEST(CompareSeries, ReversedSeriesIsAntiCorrelated) {
 }
 
 TEST(CompareSeries, HandComputedScaledRmseAndCorrelation) {
-  const std::vector<double> z = {0, 2, 4};   // scaled 0, .5, 1
+  const std::vector<double> z = {0, 2, 4};      // scaled 0, .5, 1
   const std::vector<double> z_hat = {0, 4, 4};  // scaled 0, 1, 1
   const SeriesAgreement a = compare_series(z, z_hat);
   EXPECT_NEAR(a.rmse_scaled, std::sqrt(0.25 / 3.0), kTolerance);
@@ -92,8 +92,7 @@ TEST(CompareSeries, ConstantSeriesScaleToZero) {
 }
 
 TEST(CompareSeries, NoUsablePairsGivesNaN) {
-  const SeriesAgreement a =
-      compare_series(std::vector<double>{kNaN, 1}, std::vector<double>{2, kNaN});
+  const SeriesAgreement a = compare_series(std::vector<double>{kNaN, 1}, std::vector<double>{2, kNaN});
   EXPECT_EQ(a.pairs_used, 0);
   EXPECT_TRUE(std::isnan(a.rmse_scaled));
   EXPECT_TRUE(std::isnan(a.mae));
@@ -101,8 +100,7 @@ TEST(CompareSeries, NoUsablePairsGivesNaN) {
 }
 
 TEST(CompareSeries, RejectsSeriesOfDifferentLength) {
-  EXPECT_THROW(compare_series(std::vector<double>{1, 2}, std::vector<double>{1}),
-               std::invalid_argument);
+  EXPECT_THROW(compare_series(std::vector<double>{1, 2}, std::vector<double>{1}), std::invalid_argument);
 }
 
 }  // namespace

@@ -1,12 +1,12 @@
 // The Modbus outputs against real peers: libmodbus masters reading and writing the register
 // map over loopback TCP and over an RTU pty pair (socat), the client output writing to a
 // libmodbus slave that goes away and comes back, and the server under garbage and load.
-#include "fixture_paths.hpp"
-#include "firmware_app/config/model_files.hpp"
 #include "drivers/clock.hpp"
+#include "firmware_app/config/model_files.hpp"
+#include "firmware_app/daemon/pipeline.hpp"
 #include "firmware_app/outputs/modbus_client_output.hpp"
 #include "firmware_app/outputs/modbus_server_output.hpp"
-#include "firmware_app/daemon/pipeline.hpp"
+#include "fixture_paths.hpp"
 #include "serial_peers.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
@@ -43,8 +43,8 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 namespace map = modbus_map;
 
-using test::kModel;
 using test::kClip;
+using test::kModel;
 
 const std::vector<ChannelSpec> kChannels = {
     {.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 100},
@@ -314,8 +314,9 @@ std::unique_ptr<FrameProcessor> make_processor() {
 class PipelineWithServer {
  public:
   PipelineWithServer()
-      : pipeline_(std::make_unique<SimulatedCamera>(SimulatedCameraOptions{.input = kClip, .real_time = true, .loop = true}),
-                  make_processor(), settings()),
+      : pipeline_(
+            std::make_unique<SimulatedCamera>(SimulatedCameraOptions{.input = kClip, .real_time = true, .loop = true}),
+            make_processor(), settings()),
         output_(tcp_server_options(), kChannels, pipeline_.control()) {
     pipeline_.add_output(output_);
     pipeline_.start();
@@ -424,8 +425,8 @@ TEST_F(ModbusPipelineTest, EightPollingClientsDoNotSlowThePipeline) {
   for (auto& client : clients) client.join();
 
   const double requests_per_s = static_cast<double>(reads) / 10;
-  std::printf("processed %.1f frames/s quiet, %.1f frames/s under %d clients polling %.0f requests/s\n", quiet,
-              loaded, kClients, requests_per_s);
+  std::printf("processed %.1f frames/s quiet, %.1f frames/s under %d clients polling %.0f requests/s\n", quiet, loaded,
+              kClients, requests_per_s);
   EXPECT_EQ(failures, 0u);
   EXPECT_GT(requests_per_s, 500) << "the clients really were polling";
   EXPECT_GE(loaded, 0.8 * quiet);

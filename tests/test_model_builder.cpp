@@ -37,7 +37,8 @@ KnownSet known_set() {
   Eigen::MatrixXd random(12, 2);
   random << 0.3, -1.2, 0.8, 0.5, -0.4, 0.9, 1.1, 0.2, -0.7, -0.3, 0.25, 0.6,  //
       0.9, -0.8, -0.2, 0.4, 0.55, 0.1, -0.6, 0.75, 0.35, -0.45, 0.05, 0.15;
-  const Eigen::MatrixXd q = Eigen::HouseholderQR<Eigen::MatrixXd>(random).householderQ() * Eigen::MatrixXd::Identity(12, 2);
+  const Eigen::MatrixXd q =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(random).householderQ() * Eigen::MatrixXd::Identity(12, 2);
   s.u = q.col(0).cast<float>();
   s.v = q.col(1).cast<float>();
   const float amplitudes[4][2] = {{4, 0}, {-4, 0}, {0, 1}, {0, -1}};
@@ -140,9 +141,8 @@ TEST(ModelBuilder, RejectsUnusableInput) {
 class ModelCommandTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("lipdrive_model_cmd_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = std::filesystem::temp_directory_path() / ("lipdrive_model_cmd_" + std::to_string(::getpid()) + "_" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_ / "poses");
     const KnownSet s = known_set();
@@ -178,8 +178,8 @@ TEST_F(ModelCommandTest, BuildsAModelAndDescribesIt) {
 
   ASSERT_EQ(run("model info " + (dir_ / "out.lpm").string()), 0) << output_;
   EXPECT_THAT(output_, AllOf(HasSubstr("components:     2"), HasSubstr("90 % of the variance: 1 component\n"),
-                             HasSubstr("95 % of the variance: 2 components"),
-                             HasSubstr("landmarks: 1/68 mapped"), HasSubstr("unmapped:  0 1 2")));
+                             HasSubstr("95 % of the variance: 2 components"), HasSubstr("landmarks: 1/68 mapped"),
+                             HasSubstr("unmapped:  0 1 2")));
 }
 
 TEST_F(ModelCommandTest, NeutralPoseComesFirst) {

@@ -78,7 +78,9 @@ std::string format_error(const std::vector<std::uint8_t>& bytes) {
 
 // A model file as the format's first writer wrote it, with its own table-driven CRC-32 (3
 // vertices, 1 component, 1 triangle, landmark 30 on vertex 2, one pose "neutral" at 0.5).
-// The checksum now comes from zlib: the same polynomial, so such files still load.
+// The checksum now comes from zlib: the same polynomial, so such files still load. Sixteen
+// bytes a line, as a hex dump shows them.
+// clang-format off
 constexpr std::uint8_t kModelWrittenBeforeZlib[] = {
     0x4c, 0x50, 0x44, 0x4d, 0x4f, 0x44, 0x45, 0x4c, 0x01, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00,
     0x01, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x79, 0x01, 0x00, 0x00,
@@ -107,6 +109,7 @@ constexpr std::uint8_t kModelWrittenBeforeZlib[] = {
     0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff,
     0xff, 0xff, 0xff, 0xff, 0x07, 0x00, 0x6e, 0x65, 0x75, 0x74, 0x72, 0x61, 0x6c, 0x00, 0x00, 0x00,
     0x3f};
+// clang-format on
 
 TEST(ModelFormat, AFileWrittenBeforeTheZlibChecksumStillLoads) {
   const MorphableModel m = deserialize_model(kModelWrittenBeforeZlib, kSource);
@@ -123,7 +126,8 @@ TEST(ModelFormat, AFileWrittenBeforeTheZlibChecksumStillLoads) {
   EXPECT_EQ(m.pose_coefficients(0, 0), 0.5f);
   // Written again today, the same model gives the same bytes, checksum included.
   const auto bytes = serialize_model(m);
-  EXPECT_TRUE(std::equal(bytes.begin(), bytes.end(), std::begin(kModelWrittenBeforeZlib), std::end(kModelWrittenBeforeZlib)));
+  EXPECT_TRUE(
+      std::equal(bytes.begin(), bytes.end(), std::begin(kModelWrittenBeforeZlib), std::end(kModelWrittenBeforeZlib)));
   EXPECT_EQ(bytes.size(), sizeof kModelWrittenBeforeZlib);
 }
 
@@ -132,7 +136,7 @@ TEST(ModelFormat, HeaderFollowsTheDocumentedLayout) {
   const auto bytes = serialize_model(m);
   ASSERT_GE(bytes.size(), kModelHeaderSize);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + 8), "LPDMODEL");
-  EXPECT_EQ(bytes[8], 1);  // version, little-endian
+  EXPECT_EQ(bytes[8], 1);   // version, little-endian
   EXPECT_EQ(bytes[12], 6);  // vertices
   EXPECT_EQ(bytes[16], 3);  // components
   EXPECT_EQ(bytes[20], 3);  // triangles
@@ -271,9 +275,8 @@ TEST(ModelFormat, RandomCorruptionNeverEscapesTheValidator) {
 class ModelFilesTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("lipdrive_model_files_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = std::filesystem::temp_directory_path() / ("lipdrive_model_files_" + std::to_string(::getpid()) + "_" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
   }

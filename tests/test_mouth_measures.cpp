@@ -13,7 +13,7 @@ namespace {
 // d = |midpoint(p39, p42) - p30| = 40, W = |p60 - p64| = 30, H = |p62 - p66| = 10.
 Landmarks2D hand_made_landmarks() {
   Landmarks2D p = Landmarks2D::Constant(100.0);
-  p.col(39) << 80, 60;   // inner eye corners, midpoint (100, 60)
+  p.col(39) << 80, 60;  // inner eye corners, midpoint (100, 60)
   p.col(42) << 120, 60;
   p.col(30) << 100, 100;  // nose tip: 40 below
   p.col(60) << 85, 130;   // inner lip corners: 30 apart
@@ -46,7 +46,7 @@ TEST(MouthRatios, ThreeDimensionalPointsUseTheirDepth) {
   Eigen::Matrix<double, 3, kNumLandmarks> p = Eigen::Matrix<double, 3, kNumLandmarks>::Zero();
   p.col(39) << -10, 30, 0;
   p.col(42) << 10, 30, 0;
-  p.col(30) << 0, 0, 40;   // d = |(0, 30, 0) - (0, 0, 40)| = 50
+  p.col(30) << 0, 0, 40;  // d = |(0, 30, 0) - (0, 0, 40)| = 50
   p.col(60) << -20, -20, 0;
   p.col(64) << 20, -20, 0;  // W = 40
   p.col(62) << 0, -15, 6;

@@ -3,15 +3,15 @@
 // process (--frames/--stats, SIGTERM, SIGHUP).
 //
 // Allocations are counted by tests/allocation_counter.cpp on the processing thread alone.
-#include "fixture_paths.hpp"
-#include "firmware_app/daemon/latest_frame.hpp"
+#include "allocation_counter.hpp"
+#include "daemon_process.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/daemon/latest_frame.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
 #include "firmware_app/tables/measures_csv.hpp"
-#include "allocation_counter.hpp"
-#include "daemon_process.hpp"
+#include "fixture_paths.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -22,14 +22,14 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
-#include <fcntl.h>
 #include <cstdlib>
 #include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <sstream>
 #include <new>
+#include <sstream>
 #include <string>
 #include <sys/wait.h>
 #include <thread>
@@ -42,8 +42,8 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 
-using test::kModel;
 using test::kClip;
+using test::kModel;
 
 // ---------------------------------------------------------------- hand-over structures
 
@@ -199,7 +199,8 @@ class PipelineTest : public ::testing::Test {
 TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
   PipelineSettings settings;
   settings.max_frames = 60;
-  settings.channels = {ChannelSpec{.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 100}};
+  settings.channels = {
+      ChannelSpec{.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 100}};
   settings.safety.ease_ns = 100'000'000;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings);
   RecordingOutput output;
@@ -309,8 +310,8 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   options.faults.reconnect = 1500ms;
   PipelineSettings settings;
   // The signal (0..1) maps to 0..500; neutral sits at 1000, which only the fail-safe reaches.
-  settings.channels = {
-      ChannelSpec{.name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
+  settings.channels = {ChannelSpec{
+      .name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
   settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings);
   OutageWatch watch(1000);
@@ -339,7 +340,8 @@ TEST_F(PipelineTest, SideCameraMeasuresProtrusionAndTheFrontCarriesOnWithoutIt) 
   side.faults.reconnect = 1500ms;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(front), make_processor(), PipelineSettings{});
   // The reference is fixed on the side clip's first 10 frames: it starts at rest.
-  pipeline.set_side_camera(std::make_unique<SideCamera>(std::make_unique<SimulatedCamera>(side), SideProfileSettings{}, 10));
+  pipeline.set_side_camera(
+      std::make_unique<SideCamera>(std::make_unique<SimulatedCamera>(side), SideProfileSettings{}, 10));
   pipeline.start();
   int with_side = 0, front_alone = 0, side_back = 0;
   double most_protruded = 0;
@@ -433,9 +435,8 @@ class RunTest : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
-    dir_ = fs::temp_directory_path() /
-           fmt::format("lipdrive_test_run_{}_{}", ::getpid(),
-                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() / fmt::format("lipdrive_test_run_{}_{}", ::getpid(),
+                                                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);
     config_ = dir_ / "lipdrive.toml";
   }
@@ -446,8 +447,8 @@ class RunTest : public ::testing::Test {
   void write_config(const std::string& camera = "real_time = false", int print_interval_ms = 0,
                     const std::string& rest = "") const {
     std::ofstream(config_) << fmt::format(
-        "[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n{}\n[status]\nprint_interval_ms = {}\n{}\n",
-        kModel.string(), kClip.string(), camera, print_interval_ms, rest);
+        "[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n{}\n[status]\nprint_interval_ms = {}\n{}\n", kModel.string(),
+        kClip.string(), camera, print_interval_ms, rest);
   }
   fs::path dir_, config_;
 };
@@ -517,7 +518,8 @@ std::vector<std::string> split(const std::string& line) {
 
 TEST_F(RunTest, RecordWritesCompleteLinesWithTheProcessColumns) {
   const fs::path takes = dir_ / "takes";
-  write_config("real_time = false", 0, fmt::format("[recording]\ndir = \"{}\"\nflush_interval_ms = 20", takes.string()));
+  write_config("real_time = false", 0,
+               fmt::format("[recording]\ndir = \"{}\"\nflush_interval_ms = 20", takes.string()));
   test::DaemonProcess daemon(config_, dir_ / "stderr.txt", "--record --frames 50 --stats");
   ASSERT_EQ(daemon.wait(120s), 0) << daemon.log();
   std::vector<fs::path> files;

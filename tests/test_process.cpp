@@ -50,9 +50,8 @@ ProcessRun run_process(const std::string& args, const fs::path& dir) {
 class ProcessTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("lipdrive_test_process_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() / ("lipdrive_test_process_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);
   }
   void TearDown() override {
@@ -110,7 +109,8 @@ TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   const auto process_with = [&](const std::string& name, const std::string& model_table) {
     const fs::path config = dir_ / (name + ".toml"), out = dir_ / (name + ".csv");
     std::ofstream(config) << "[model]\n" << model_table;
-    const ProcessRun run = run_process(video.string() + " --config " + config.string() + " --out " + out.string(), dir_);
+    const ProcessRun run =
+        run_process(video.string() + " --config " + config.string() + " --out " + out.string(), dir_);
     EXPECT_EQ(run.exit_code, 0) << run.stderr_text;
     return file_text(out);
   };
@@ -135,7 +135,8 @@ TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {
                  truth_csv = kFixtureDir / "side_view_truth.csv";
   if (!fs::exists(front) || !fs::exists(side)) GTEST_SKIP() << "no generated fixtures in " << kFixtureDir;
   const fs::path out = dir_ / "with_side.csv";
-  const ProcessRun run = run_process(fmt::format("{} --side {} --out {}", front.string(), side.string(), out.string()), dir_);
+  const ProcessRun run =
+      run_process(fmt::format("{} --side {} --out {}", front.string(), side.string(), out.string()), dir_);
   ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
   const CsvTable output = read_csv_table(out);
   ASSERT_EQ(output.header.back(), "protrusion_side");

@@ -7,8 +7,8 @@
 #include "firmware_app/outputs/serial_output.hpp"
 #include "serial_peers.hpp"
 
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <termios.h>
@@ -35,8 +35,8 @@ using Clock = std::chrono::steady_clock;
 using test::Bytes;
 using test::decode_frames;
 using test::DecodedFrame;
-using test::FrameStream;
 using test::eventually;
+using test::FrameStream;
 using test::PtyPair;
 using test::TempDir;
 using Reader = test::PtyReader;
@@ -122,7 +122,8 @@ DriveFrame frame_with(std::uint32_t counter, std::vector<double> values) {
 // Values that exercise rounding, sign and range: a frame per counter.
 DriveFrame test_frame(std::uint32_t counter) {
   const double t = counter * 0.37;
-  return frame_with(counter, {500 + 499.6 * std::sin(t), 0.5 + counter, -250.5 + std::fmod(t, 1.0) * 100, 1500 + 400 * std::cos(t)});
+  return frame_with(
+      counter, {500 + 499.6 * std::sin(t), 0.5 + counter, -250.5 + std::fmod(t, 1.0) * 100, 1500 + 400 * std::cos(t)});
 }
 
 // Publishes and returns how long it took.

@@ -156,10 +156,11 @@ TEST_P(SideProfileTest, RankingOfAllPosesFollowsTheTruth) {
   }
   const SeriesAgreement agreement = compare_series(truth, measured);
   const double spearman = compare_series(ranks(moved_truth), ranks(moved_measured)).pearson_r;
-  std::printf("[ figures  ] %s facing, %zu poses: Pearson r %.4f, scaled RMSE %.4f, MAE %.4f; "
-              "Spearman rho over the %zu that move the upper lip %.4f\n",
-              GetParam() == ProfileFacing::kRight ? "right" : "left", truth.size(), agreement.pearson_r,
-              agreement.rmse_scaled, agreement.mae, moved_truth.size(), spearman);
+  std::printf(
+      "[ figures  ] %s facing, %zu poses: Pearson r %.4f, scaled RMSE %.4f, MAE %.4f; "
+      "Spearman rho over the %zu that move the upper lip %.4f\n",
+      GetParam() == ProfileFacing::kRight ? "right" : "left", truth.size(), agreement.pearson_r, agreement.rmse_scaled,
+      agreement.mae, moved_truth.size(), spearman);
   EXPECT_GE(agreement.pearson_r, 0.9);
   EXPECT_GE(spearman, 0.9);
 }
@@ -262,7 +263,8 @@ TEST(SideProfile, ShapesWithoutAFaceAreRejected) {
   EXPECT_FALSE(meter.find(box).ok());
   // A nose-like wedge without lips below it.
   cv::Mat wedge(480, 640, CV_8UC1, 0.0);
-  const std::vector<cv::Point> outline{{200, 50}, {330, 50}, {300, 150}, {420, 240}, {320, 260}, {320, 450}, {200, 450}};
+  const std::vector<cv::Point> outline{{200, 50},  {330, 50},  {300, 150}, {420, 240},
+                                       {320, 260}, {320, 450}, {200, 450}};
   cv::fillPoly(wedge, std::vector{outline}, cv::Scalar(180));
   EXPECT_EQ(meter.find(wedge).status, SideStatus::kNoLip);
 }
@@ -298,10 +300,11 @@ TEST(SideViewFixture, MeasureFollowsTheTruthOverTheClip) {
     measured.push_back(m.protrusion);
   }
   const SeriesAgreement a = compare_series(truth, measured);
-  std::printf("[ figures  ] fixture, %d frames: scaled RMSE %.4f, Pearson r %.4f, MAE %.4f, max error %.4f, "
-              "std ratio %.3f (truth range %.4f..%.4f)\n",
-              a.pairs_used, a.rmse_scaled, a.pearson_r, a.mae, a.max_abs_error, a.std_ratio,
-              *std::ranges::min_element(truth), *std::ranges::max_element(truth));
+  std::printf(
+      "[ figures  ] fixture, %d frames: scaled RMSE %.4f, Pearson r %.4f, MAE %.4f, max error %.4f, "
+      "std ratio %.3f (truth range %.4f..%.4f)\n",
+      a.pairs_used, a.rmse_scaled, a.pearson_r, a.mae, a.max_abs_error, a.std_ratio, *std::ranges::min_element(truth),
+      *std::ranges::max_element(truth));
   EXPECT_EQ(a.pairs_used, static_cast<int>(truth.size()));
   EXPECT_GE(a.pearson_r, 0.95);
   EXPECT_LE(a.rmse_scaled, 0.1);  // docs/method.md 5 reference: 0.157-0.266 on real video

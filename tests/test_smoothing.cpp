@@ -37,7 +37,8 @@ constexpr OneEuroSettings kShipped{.min_cutoff_hz = 1.0, .beta = 30.0, .d_cutoff
 
 // Runs `lipdrive process VIDEO --out CSV` and reads the table; empty on failure.
 CsvTable process(const fs::path& video, const fs::path& csv) {
-  const std::string command = std::string(LIPDRIVE_BINARY) + " process " + video.string() + " --out " + csv.string() + " 2>/dev/null";
+  const std::string command =
+      std::string(LIPDRIVE_BINARY) + " process " + video.string() + " --out " + csv.string() + " 2>/dev/null";
   const int status = std::system(command.c_str());
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << command;
   return read_csv_table(csv);
@@ -82,7 +83,8 @@ std::vector<Word> read_align(const fs::path& path) {
   std::ifstream in(path);
   long start = 0, end = 0;
   std::string text;
-  while (in >> start >> end >> text) words.push_back({static_cast<int>(start / 1000), static_cast<int>(end / 1000), text});
+  while (in >> start >> end >> text)
+    words.push_back({static_cast<int>(start / 1000), static_cast<int>(end / 1000), text});
   return words;
 }
 
@@ -116,7 +118,8 @@ TEST_F(Smoothing, GridSilenceIsStillerAndBilabialClosuresKeepTheirDepth) {
     const int first = std::min(silence->first, last_frame), last = std::min(silence->last, last_frame);
     ASSERT_LT(first, last);
     const double jitter_before = mean_abs_step(raw, first, last), jitter_after = mean_abs_step(smooth, first, last);
-    RecordProperty(clip + "_final_silence_mean_abs_step", std::to_string(jitter_before) + " -> " + std::to_string(jitter_after));
+    RecordProperty(clip + "_final_silence_mean_abs_step",
+                   std::to_string(jitter_before) + " -> " + std::to_string(jitter_after));
     EXPECT_LT(jitter_after, jitter_before) << "final silence frames " << first << "-" << last;
     ++clips;
     for (const Word& w : words) {

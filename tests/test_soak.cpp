@@ -1,7 +1,7 @@
 // The daemon for a minute at 60 fps on the simulated camera with every fault injected: memory
 // stays flat, the systemd watchdog is fed on time throughout, and the drive keeps running.
-#include "fixture_paths.hpp"
 #include "daemon_process.hpp"
+#include "fixture_paths.hpp"
 
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -72,7 +72,8 @@ signal = "open"
     const std::string message = notify.receive(20ms);
     if (message.find("WATCHDOG=1") != std::string::npos) {
       const auto now = Clock::now();
-      if (pings++ > 0) worst_gap = std::max(worst_gap, std::chrono::duration_cast<std::chrono::milliseconds>(now - last_ping));
+      if (pings++ > 0)
+        worst_gap = std::max(worst_gap, std::chrono::duration_cast<std::chrono::milliseconds>(now - last_ping));
       last_ping = now;
     }
     if (Clock::now() >= next_sample) {

@@ -58,9 +58,9 @@ TEST(SyntheticHead, PoseCountsAndNames) {
       const std::string name = std::string(viseme) + "_" + (percent < 100 ? "0" : "") + std::to_string(percent);
       EXPECT_TRUE(names.count(name)) << name;
     }
-    EXPECT_TRUE(std::any_of(small.poses.begin(), small.poses.end(),
-                            [&](const HeadPose& p) { return p.name == std::string(viseme) + "_100"; }))
-        << viseme;
+    EXPECT_TRUE(std::any_of(small.poses.begin(), small.poses.end(), [&](const HeadPose& p) {
+      return p.name == std::string(viseme) + "_100";
+    })) << viseme;
   }
   EXPECT_TRUE(names.count("BigAah_030"));
   EXPECT_TRUE(names.count("B-M-P_100"));
@@ -111,11 +111,11 @@ TEST(SyntheticHead, NeutralAnatomy) {
     EXPECT_GT(landmark(n, 30).z(), landmark(n, i).z()) << i;
   }
   // Proportions within 10 % of the anthropometric means the head is built from.
-  EXPECT_NEAR(landmark(n, 27).y() - landmark(n, 8).y(), 120, 12);                // n–gn
-  EXPECT_NEAR(landmark(n, 45).x() - landmark(n, 36).x(), 90, 9);                 // ex–ex
-  EXPECT_NEAR(landmark(n, 42).x() - landmark(n, 39).x(), 32, 3.2);               // en–en
-  EXPECT_NEAR((landmark(n, 54) - landmark(n, 48)).norm(), 50, 5);                // ch–ch
-  EXPECT_NEAR(landmark(n, 27).y() - landmark(n, 33).y(), 53, 5.3);               // n–sn
+  EXPECT_NEAR(landmark(n, 27).y() - landmark(n, 8).y(), 120, 12);   // n–gn
+  EXPECT_NEAR(landmark(n, 45).x() - landmark(n, 36).x(), 90, 9);    // ex–ex
+  EXPECT_NEAR(landmark(n, 42).x() - landmark(n, 39).x(), 32, 3.2);  // en–en
+  EXPECT_NEAR((landmark(n, 54) - landmark(n, 48)).norm(), 50, 5);   // ch–ch
+  EXPECT_NEAR(landmark(n, 27).y() - landmark(n, 33).y(), 53, 5.3);  // n–sn
   EXPECT_LT(inner_height(n), 1.0f) << "lips closed at rest";
 }
 
@@ -195,7 +195,8 @@ TEST(MeshRenderer, FrontalNeutralLooksLikeAFaceOnABackground) {
   const ImageProjection projection = fit_projection(pose("neutral").vertices, view);
   EXPECT_LT(projection.project(landmark(pose("neutral"), 36)).x(), 160);
   EXPECT_GT(projection.project(landmark(pose("neutral"), 45)).x(), 160);
-  EXPECT_LT(projection.project(landmark(pose("neutral"), 27)).y(), projection.project(landmark(pose("neutral"), 8)).y());
+  EXPECT_LT(projection.project(landmark(pose("neutral"), 27)).y(),
+            projection.project(landmark(pose("neutral"), 8)).y());
 }
 
 TEST(MeshRenderer, RightProfileShowsTheNoseOnTheRight) {

@@ -60,10 +60,10 @@ TEST_F(SystemdUnitTest, VerifyRejectsAMissingBinary) {
 }
 
 TEST_F(SystemdUnitTest, ExposureScore) {
-  const CommandRun security =
-      run("systemd-analyze security --offline=yes " + unit_running(LIPDRIVE_BINARY).string());
+  const CommandRun security = run("systemd-analyze security --offline=yes " + unit_running(LIPDRIVE_BINARY).string());
   std::smatch match;
-  ASSERT_TRUE(std::regex_search(security.output, match, std::regex(R"(Overall exposure level for \S+: ([0-9.]+) (\w+))")))
+  ASSERT_TRUE(
+      std::regex_search(security.output, match, std::regex(R"(Overall exposure level for \S+: ([0-9.]+) (\w+))")))
       << security.output;
   const double score = std::stod(match[1]);
   std::printf("systemd-analyze security --offline=yes: exposure %.1f %s\n", score, match[2].str().c_str());

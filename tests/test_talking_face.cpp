@@ -28,19 +28,19 @@ Landmarks2D synthetic_landmarks() {
     }
   };
   constexpr double pi = std::numbers::pi;
-  arc(0, 16, 200, 180, 110, 140, pi, 0);                // jaw: left ear, chin, right ear
-  arc(17, 21, 150, 150, 40, 15, pi, 2 * pi);            // right brow
-  arc(22, 26, 250, 150, 40, 15, pi, 2 * pi);            // left brow
+  arc(0, 16, 200, 180, 110, 140, pi, 0);                                // jaw: left ear, chin, right ear
+  arc(17, 21, 150, 150, 40, 15, pi, 2 * pi);                            // right brow
+  arc(22, 26, 250, 150, 40, 15, pi, 2 * pi);                            // left brow
   for (int i = 27; i <= 30; ++i) p.col(i) << 200, 170 + 15 * (i - 27);  // nose bridge
-  arc(31, 35, 200, 210, 25, 8, 0.9 * pi, 0.1 * pi);     // lower nose
-  arc(36, 39, 150, 175, 22, 8, pi, 2 * pi);             // right eye, upper lid
-  arc(40, 41, 150, 175, 22, 8, pi / 3, 2 * pi / 3);     // right eye, lower lid
-  arc(42, 45, 250, 175, 22, 8, pi, 2 * pi);             // left eye, upper lid
-  arc(46, 47, 250, 175, 22, 8, pi / 3, 2 * pi / 3);     // left eye, lower lid
-  arc(48, 54, 200, 255, 45, 14, pi, 2 * pi);            // outer lip, top
-  arc(55, 59, 200, 255, 45, 16, pi / 6, 5 * pi / 6);    // outer lip, bottom
-  arc(60, 64, 200, 255, 34, 4, pi, 2 * pi);             // inner lip, top
-  arc(65, 67, 200, 255, 34, 4, pi / 4, 3 * pi / 4);     // inner lip, bottom
+  arc(31, 35, 200, 210, 25, 8, 0.9 * pi, 0.1 * pi);                     // lower nose
+  arc(36, 39, 150, 175, 22, 8, pi, 2 * pi);                             // right eye, upper lid
+  arc(40, 41, 150, 175, 22, 8, pi / 3, 2 * pi / 3);                     // right eye, lower lid
+  arc(42, 45, 250, 175, 22, 8, pi, 2 * pi);                             // left eye, upper lid
+  arc(46, 47, 250, 175, 22, 8, pi / 3, 2 * pi / 3);                     // left eye, lower lid
+  arc(48, 54, 200, 255, 45, 14, pi, 2 * pi);                            // outer lip, top
+  arc(55, 59, 200, 255, 45, 16, pi / 6, 5 * pi / 6);                    // outer lip, bottom
+  arc(60, 64, 200, 255, 34, 4, pi, 2 * pi);                             // inner lip, top
+  arc(65, 67, 200, 255, 34, 4, pi / 4, 3 * pi / 4);                     // inner lip, bottom
   return p;
 }
 

@@ -181,8 +181,7 @@ struct LumaCase {
 };
 
 void PrintTo(const LumaCase& luma_case, std::ostream* out) {
-  *out << pixel_format_name(luma_case.format) << " with " << luma_case.row_padding
-       << " bytes of row padding";
+  *out << pixel_format_name(luma_case.format) << " with " << luma_case.row_padding << " bytes of row padding";
 }
 
 class V4l2Luma : public ::testing::TestWithParam<LumaCase> {};
@@ -444,8 +443,7 @@ TEST(V4l2Disconnect, FramesResumeWhenTheDeviceComesBack) {
   ASSERT_EQ(camera.grab(frame, 20ms), GrabStatus::kDisconnected);
 
   // While the device is away every grab reports it (and keeps trying to reopen it).
-  for (int attempt = 0; attempt < 5; ++attempt)
-    EXPECT_EQ(camera.grab(frame, 20ms), GrabStatus::kDisconnected);
+  for (int attempt = 0; attempt < 5; ++attempt) EXPECT_EQ(camera.grab(frame, 20ms), GrabStatus::kDisconnected);
   EXPECT_NE(camera.reconnect_error().find(config.path), std::string::npos) << camera.reconnect_error();
   EXPECT_EQ(device.open_fd_count(), 0u);
 

@@ -11,8 +11,8 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
-#include <cstdlib>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <random>
@@ -64,8 +64,10 @@ TEST(Nnls, SatisfiesTheKuhnTuckerConditionsWhenLeastSquaresGoesNegative) {
     const Vector gradient = h - p.gram() * w;  // minus the gradient of ½|Aw - b|²
     EXPECT_GE(w.minCoeff(), 0);
     for (int j = 0; j < kNumVisemes; ++j) {
-      if (w(j) > 0) EXPECT_NEAR(gradient(j), 0, 1e-9) << j;  // free variables: stationary
-      else EXPECT_LE(gradient(j), 1e-9) << j;                 // bound variables: pushing outwards
+      if (w(j) > 0)
+        EXPECT_NEAR(gradient(j), 0, 1e-9) << j;  // free variables: stationary
+      else
+        EXPECT_LE(gradient(j), 1e-9) << j;  // bound variables: pushing outwards
     }
   }
 }
@@ -110,7 +112,9 @@ Eigen::MatrixXd viseme_directions(const MorphableModel& model) {
   for (int v = 0; v < kNumVisemes; ++v) {
     const std::string name(kVisemeNames[v]);
     const int pose = *model.pose_index(model.pose_index(name + "_100") ? name + "_100" : name);
-    directions.col(v) = (model.stddev.cwiseProduct(model.pose_coefficients.col(pose) - model.pose_coefficients.col(neutral))).cast<double>();
+    directions.col(v) =
+        (model.stddev.cwiseProduct(model.pose_coefficients.col(pose) - model.pose_coefficients.col(neutral)))
+            .cast<double>();
   }
   return directions;
 }
@@ -147,7 +151,9 @@ TEST_P(DefaultModels, FullPosesAreReproducedAndTheirSeparationIsReported) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Default, DefaultModels, ::testing::Values("default.lpm", "default17.lpm"),
-                         [](const auto& info) { return std::string(info.param == std::string("default.lpm") ? "Poses161" : "Poses17"); });
+                         [](const auto& info) {
+                           return std::string(info.param == std::string("default.lpm") ? "Poses161" : "Poses17");
+                         });
 
 TEST(VisemeSolver, NeedsNeutralAndEveryFullViseme) {
   MorphableModel model = testing::random_model(100, 20, 1);
@@ -192,12 +198,13 @@ std::pair<int, double> viseme_and_intensity(const std::string& pose) {
 struct Recovery {
   int poses = 0, recovered = 0, right_viseme = 0;
   double rms_intensity_error = 0;
-  std::string confusions;  // truth->largest xN
+  std::string confusions;                     // truth->largest xN
   std::array<int, 10> misses_by_intensity{};  // poses not recovered at 10 %, 20 %, ... 100 %
   double rate() const { return static_cast<double>(recovered) / poses; }
   std::string misses() const {
     std::string out;
-    for (int k = 0; k < 10; ++k) out += std::to_string(10 * (k + 1)) + "%:" + std::to_string(misses_by_intensity[k]) + " ";
+    for (int k = 0; k < 10; ++k)
+      out += std::to_string(10 * (k + 1)) + "%:" + std::to_string(misses_by_intensity[k]) + " ";
     return out;
   }
   std::string summary() const {
@@ -222,17 +229,23 @@ Recovery measure_recovery(const MorphableModel& model, double eye_span_px, Weigh
     if (model.pose_names[pose] == "neutral") continue;
     const auto [viseme, intensity] = viseme_and_intensity(model.pose_names[pose]);
     EXPECT_LT(viseme, kNumVisemes) << model.pose_names[pose];
-    const Landmarks2D noisy = with_noise(testing::project(camera, testing::model_landmarks(model, pose_alpha(model, pose))), 1.0, 100 + pose);
+    const Landmarks2D noisy =
+        with_noise(testing::project(camera, testing::model_landmarks(model, pose_alpha(model, pose))), 1.0, 100 + pose);
     FitOutput fit = Fitter::initial_output();
     fitter.fit(noisy, fit);
     const VisemeWeights w = weights(fit, noisy);
     const double error = std::abs(w[viseme] - intensity);
     ++r.poses;
     sum_squared += error * error;
-    if (largest(w) == viseme) ++r.right_viseme;
-    else ++confusions[{kVisemeNames[viseme], kVisemeNames[largest(w)]}];
-    if (largest(w) == viseme && error <= 0.15) ++r.recovered;
-    else ++r.misses_by_intensity[static_cast<std::size_t>(std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9))];
+    if (largest(w) == viseme)
+      ++r.right_viseme;
+    else
+      ++confusions[{kVisemeNames[viseme], kVisemeNames[largest(w)]}];
+    if (largest(w) == viseme && error <= 0.15)
+      ++r.recovered;
+    else
+      ++r.misses_by_intensity[static_cast<std::size_t>(
+          std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9))];
   }
   r.rms_intensity_error = std::sqrt(sum_squared / r.poses);
   for (const auto& [pair, count] : confusions)
@@ -263,7 +276,10 @@ Recovery oracle_recovery(const MorphableModel& model, double eye_span_px) {
       if (d < best_distance) best_distance = d, best = q;
     }
     ++r.poses;
-    const auto miss = [&] { ++r.misses_by_intensity[static_cast<std::size_t>(std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9))]; };
+    const auto miss = [&] {
+      ++r.misses_by_intensity[static_cast<std::size_t>(
+          std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9))];
+    };
     if (model.pose_names[best] == "neutral") {
       miss();
       continue;
@@ -295,7 +311,9 @@ TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
   const VisemeSolver solver(model);
   const auto set = landmark_indices(kDefaultLandmarkSet);
   const auto nnls = [&](const FitOutput& fit, const Landmarks2D&) { return solver.solve(fit.coefficients); };
-  const auto matched = [&](const FitOutput& fit, const Landmarks2D& detected) { return solver.solve(fit, detected, set); };
+  const auto matched = [&](const FitOutput& fit, const Landmarks2D& detected) {
+    return solver.solve(fit, detected, set);
+  };
   std::string figures;
   Recovery rig;
   for (const double span : {kFarEyeSpanPx, kRigEyeSpanPx}) {
@@ -306,11 +324,12 @@ TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
     RecordProperty("pose_match_recovery_" + at, b.summary());
     RecordProperty("pose_match_confusions_" + at, b.confusions);
     RecordProperty("oracle_true_camera_recovery_" + at, std::to_string(o.recovered) + "/" + std::to_string(o.poses) +
-                                                         " (viseme right in " + std::to_string(o.right_viseme) + ")");
+                                                            " (viseme right in " + std::to_string(o.right_viseme) +
+                                                            ")");
     RecordProperty("pose_match_misses_by_intensity_" + at, b.misses());
     RecordProperty("oracle_misses_by_intensity_" + at, o.misses());
-    figures += "at " + at + ": NNLS " + a.summary() + "; pose match " + b.summary() + " (misses by intensity " + b.misses() +
-               "); oracle (true camera) " + std::to_string(o.recovered) + "/" + std::to_string(o.poses) +
+    figures += "at " + at + ": NNLS " + a.summary() + "; pose match " + b.summary() + " (misses by intensity " +
+               b.misses() + "); oracle (true camera) " + std::to_string(o.recovered) + "/" + std::to_string(o.poses) +
                " (misses " + o.misses() + "). ";
     if (span == kRigEyeSpanPx) rig = b;
   }
@@ -323,7 +342,8 @@ TEST(VisemeSolver, PoseMatchAllocatesNothingAndGivesWeightsInRange) {
   const MorphableModel model = load_model_file(path);
   const VisemeSolver solver(model);
   const Fitter fitter(model, kDefaultLandmarkSet);
-  const Landmarks2D truth = testing::project(testing::test_camera(2.5), testing::model_landmarks(model, pose_alpha(model, *model.pose_index("Aah_100"))));
+  const Landmarks2D truth = testing::project(
+      testing::test_camera(2.5), testing::model_landmarks(model, pose_alpha(model, *model.pose_index("Aah_100"))));
   FitOutput fit = Fitter::initial_output();
   fitter.fit(truth, fit);
   const auto set = landmark_indices(kDefaultLandmarkSet);

@@ -106,20 +106,22 @@ void run_calibrate(const CalibrateOptions& options) {
              profile.protrusion.max);
   fmt::print("  vertical mouth height {:.2f} ({}; model {}), mouth width {:.2f} ({}; model {})\n",
              (*profile.face_indices)[kVerticalMouthHeightIndex],
-             index_class_name(check.performer.vertical_mouth_height), index_class_name(check.model.vertical_mouth_height),
-             (*profile.face_indices)[kMouthWidthIndex], index_class_name(check.performer.mouth_width),
-             index_class_name(check.model.mouth_width));
+             index_class_name(check.performer.vertical_mouth_height),
+             index_class_name(check.model.vertical_mouth_height), (*profile.face_indices)[kMouthWidthIndex],
+             index_class_name(check.performer.mouth_width), index_class_name(check.model.mouth_width));
   if (check.warn)
-    fmt::print("  warning: the performer's vertical mouth height is {} and the model's {}: expect clearly worse lips "
-               "(docs/method.md 6); a model of a closer head drives better\n",
-               index_class_name(check.performer.vertical_mouth_height), index_class_name(check.model.vertical_mouth_height));
+    fmt::print(
+        "  warning: the performer's vertical mouth height is {} and the model's {}: expect clearly worse lips "
+        "(docs/method.md 6); a model of a closer head drives better\n",
+        index_class_name(check.performer.vertical_mouth_height), index_class_name(check.model.vertical_mouth_height));
 }
 
 }  // namespace
 
 void add_calibrate_command(CLI::App& app) {
   auto options = std::make_shared<CalibrateOptions>();
-  CLI::App* cmd = app.add_subcommand("calibrate", "Measure a performer's neutral face and range of motion into a profile");
+  CLI::App* cmd =
+      app.add_subcommand("calibrate", "Measure a performer's neutral face and range of motion into a profile");
   cmd->add_option("--config", options->config, "configuration file: model, tracker, camera, [performer]")->required();
   cmd->add_option("--performer", options->performer, "the performer's name (the profile file's name)")->required();
   cmd->add_option("--input", options->input, "a recording instead of the configured camera");

@@ -26,11 +26,9 @@ namespace {
 
 // The mouth measures `lipdrive process` writes, in its column order.
 constexpr std::array<std::string_view, 8> kMeasureColumns = {
-    "width_2d", "height_2d", "width_fit",     "height_fit",
-    "width_3d", "height_3d", "protrusion_3d", "protrusion_side"};
+    "width_2d", "height_2d", "width_fit", "height_fit", "width_3d", "height_3d", "protrusion_3d", "protrusion_side"};
 // Columns that identify or qualify a row rather than measure the mouth.
-constexpr std::array<std::string_view, 5> kRowColumns = {"frame", "time_s", "source", "tracked",
-                                                         "quality"};
+constexpr std::array<std::string_view, 5> kRowColumns = {"frame", "time_s", "source", "tracked", "quality"};
 
 struct EvalOptions {
   std::string truth_path;
@@ -54,14 +52,13 @@ std::vector<std::string> default_columns(const CsvTable& truth, const CsvTable& 
   }
   if (!columns.empty()) return columns;
   for (const std::string& name : truth.header) {
-    const bool row_column =
-        std::find(kRowColumns.begin(), kRowColumns.end(), name) != kRowColumns.end();
+    const bool row_column = std::find(kRowColumns.begin(), kRowColumns.end(), name) != kRowColumns.end();
     if (!row_column && has_column(pred, name)) columns.push_back(name);
   }
   if (columns.empty()) {
-    throw CommandError(fmt::format("{} and {} have no measure column in common",
-                                   truth.path.string(), pred.path.string()),
-                       kExitDataError);
+    throw CommandError(
+        fmt::format("{} and {} have no measure column in common", truth.path.string(), pred.path.string()),
+        kExitDataError);
   }
   return columns;
 }
@@ -88,8 +85,8 @@ std::vector<int> frame_numbers(const CsvTable& table) {
 
 /// Row indices (truth, pred) of the frames present in both tables, in truth order;
 /// restricted to `scored_frames` when given.
-std::vector<std::pair<std::size_t, std::size_t>> matched_rows(
-    const CsvTable& truth, const CsvTable& pred, const std::optional<std::set<int>>& scored_frames) {
+std::vector<std::pair<std::size_t, std::size_t>> matched_rows(const CsvTable& truth, const CsvTable& pred,
+                                                              const std::optional<std::set<int>>& scored_frames) {
   std::map<int, std::size_t> pred_row_of_frame;
   const std::vector<int> pred_frames = frame_numbers(pred);
   for (std::size_t row = 0; row < pred_frames.size(); ++row) pred_row_of_frame[pred_frames[row]] = row;
@@ -106,9 +103,9 @@ std::vector<std::pair<std::size_t, std::size_t>> matched_rows(
   return pairs;
 }
 
-std::vector<ColumnAgreement> compare_columns(
-    const CsvTable& truth, const CsvTable& pred, const std::vector<std::string>& columns,
-    const std::vector<std::pair<std::size_t, std::size_t>>& rows) {
+std::vector<ColumnAgreement> compare_columns(const CsvTable& truth, const CsvTable& pred,
+                                             const std::vector<std::string>& columns,
+                                             const std::vector<std::pair<std::size_t, std::size_t>>& rows) {
   std::vector<ColumnAgreement> results;
   for (const std::string& column : columns) {
     const std::vector<double> truth_values = numeric_column(truth, column);
@@ -126,12 +123,11 @@ std::vector<ColumnAgreement> compare_columns(
 void print_table(const std::vector<ColumnAgreement>& results) {
   std::size_t name_width = std::string_view("column").size();
   for (const auto& result : results) name_width = std::max(name_width, result.column.size());
-  fmt::print("{:<{}} {:>6} {:>12} {:>12} {:>12} {:>10} {:>10}\n", "column", name_width, "n",
-             "rmse_scaled", "mae", "max_abs", "pearson_r", "std_ratio");
+  fmt::print("{:<{}} {:>6} {:>12} {:>12} {:>12} {:>10} {:>10}\n", "column", name_width, "n", "rmse_scaled", "mae",
+             "max_abs", "pearson_r", "std_ratio");
   for (const auto& [column, a] : results) {
-    fmt::print("{:<{}} {:>6} {:>12.4f} {:>12.5g} {:>12.5g} {:>10.4f} {:>10.4f}\n", column,
-               name_width, a.pairs_used, a.rmse_scaled, a.mae, a.max_abs_error, a.pearson_r,
-               a.std_ratio);
+    fmt::print("{:<{}} {:>6} {:>12.4f} {:>12.5g} {:>12.5g} {:>10.4f} {:>10.4f}\n", column, name_width, a.pairs_used,
+               a.rmse_scaled, a.mae, a.max_abs_error, a.pearson_r, a.std_ratio);
   }
 }
 
@@ -159,15 +155,14 @@ nlohmann::json to_json(const EvalOptions& options, std::size_t frames_matched,
 void run_eval(const EvalOptions& options) {
   const CsvTable truth = read_csv_table(options.truth_path);
   const CsvTable pred = read_csv_table(options.pred_path);
-  const std::vector<std::string> columns =
-      options.columns.empty() ? default_columns(truth, pred) : options.columns;
+  const std::vector<std::string> columns = options.columns.empty() ? default_columns(truth, pred) : options.columns;
 
   std::optional<std::set<int>> scored_frames;
   if (!options.align_path.empty()) scored_frames = speech_frames(read_grid_align(options.align_path));
   const auto rows = matched_rows(truth, pred, scored_frames);
   if (rows.empty()) {
-    throw CommandError(fmt::format("{} and {} have no {}frames in common", options.truth_path,
-                                   options.pred_path, scored_frames ? "speech " : ""),
+    throw CommandError(fmt::format("{} and {} have no {}frames in common", options.truth_path, options.pred_path,
+                                   scored_frames ? "speech " : ""),
                        kExitDataError);
   }
 
@@ -176,8 +171,8 @@ void run_eval(const EvalOptions& options) {
     std::cout << to_json(options, rows.size(), results).dump(2) << '\n';
     return;
   }
-  fmt::print("truth {} vs output {}: {} {}frames matched\n", options.truth_path,
-             options.pred_path, rows.size(), scored_frames ? "speech " : "");
+  fmt::print("truth {} vs output {}: {} {}frames matched\n", options.truth_path, options.pred_path, rows.size(),
+             scored_frames ? "speech " : "");
   print_table(results);
 }
 
@@ -185,15 +180,13 @@ void run_eval(const EvalOptions& options) {
 
 void add_eval_command(CLI::App& app) {
   auto options = std::make_shared<EvalOptions>();
-  CLI::App* eval = app.add_subcommand(
-      "eval", "Compare an output CSV with ground truth: scaled RMSE, MAE, max error, Pearson r, "
-              "std ratio per column");
-  eval->add_option("--truth", options->truth_path, "Ground-truth CSV (or any per-frame CSV)")
-      ->required();
-  eval->add_option("--pred", options->pred_path, "Output CSV to score, e.g. from lipdrive process")
-      ->required();
-  eval->add_option("--columns", options->columns,
-                   "Columns to compare (default: the mouth measures both files have)")
+  CLI::App* eval =
+      app.add_subcommand("eval",
+                         "Compare an output CSV with ground truth: scaled RMSE, MAE, max error, Pearson r, "
+                         "std ratio per column");
+  eval->add_option("--truth", options->truth_path, "Ground-truth CSV (or any per-frame CSV)")->required();
+  eval->add_option("--pred", options->pred_path, "Output CSV to score, e.g. from lipdrive process")->required();
+  eval->add_option("--columns", options->columns, "Columns to compare (default: the mouth measures both files have)")
       ->delimiter(',');
   eval->add_option("--align", options->align_path,
                    "GRID .align transcript: score only frames overlapping spoken words");

@@ -33,9 +33,9 @@ std::vector<fs::path> pose_files(const fs::path& dir) {
   for (const auto& entry : fs::directory_iterator(dir))
     if (entry.is_regular_file() && entry.path().extension() == ".obj") files.push_back(entry.path());
   if (files.size() < 2)
-    throw CommandError(fmt::format("{}: found {} .obj files, a model needs at least 2 poses", dir.string(),
-                                   files.size()),
-                       kExitNoInput);
+    throw CommandError(
+        fmt::format("{}: found {} .obj files, a model needs at least 2 poses", dir.string(), files.size()),
+        kExitNoInput);
   std::sort(files.begin(), files.end(), [](const fs::path& a, const fs::path& b) {
     const bool a_neutral = a.filename() == "neutral.obj", b_neutral = b.filename() == "neutral.obj";
     if (a_neutral != b_neutral) return a_neutral;
@@ -61,10 +61,10 @@ void check_same_topology(const fs::path& file, const Mesh& mesh, const fs::path&
   const auto [differs, _] = std::mismatch(mesh.triangles.begin(), mesh.triangles.end(), reference.triangles.begin());
   if (differs != mesh.triangles.end()) {
     const auto t = differs - mesh.triangles.begin();
-    throw CommandError(fmt::format("{}: triangle list differs from {} at face {} ({} vs {}, 1-based vertices)",
-                                   file.string(), reference_file.filename().string(), t + 1,
-                                   one_based(*differs), one_based(reference.triangles[t])),
-                       kExitDataError);
+    throw CommandError(
+        fmt::format("{}: triangle list differs from {} at face {} ({} vs {}, 1-based vertices)", file.string(),
+                    reference_file.filename().string(), t + 1, one_based(*differs), one_based(reference.triangles[t])),
+        kExitDataError);
   }
 }
 
@@ -113,8 +113,7 @@ void run_build(const BuildArgs& args) {
   }
   save_model_file(args.out, model);
   fmt::print("{}: {} poses, {} vertices, {} components, {:.2f} % of the variance kept\n", args.out.string(),
-             model.num_poses(), model.num_vertices(), model.num_components(),
-             100 * variance_fractions(model).sum());
+             model.num_poses(), model.num_vertices(), model.num_components(), 100 * variance_fractions(model).sum());
 }
 
 void print_info(const fs::path& file) {
@@ -181,10 +180,8 @@ void render(const RenderArgs& args) {
 void add_build_command(CLI::App& model) {
   auto args = std::make_shared<BuildArgs>();
   auto* cmd = model.add_subcommand("build", "Build a morphable model (PCA) from a folder of pose meshes");
-  cmd->add_option("--poses", args->poses, "Folder of OBJ meshes with identical vertex order, one per pose")
-      ->required();
-  cmd->add_option("--landmarks", args->landmarks, "Landmark map (TOML: [landmarks] iBUG index = vertex)")
-      ->required();
+  cmd->add_option("--poses", args->poses, "Folder of OBJ meshes with identical vertex order, one per pose")->required();
+  cmd->add_option("--landmarks", args->landmarks, "Landmark map (TOML: [landmarks] iBUG index = vertex)")->required();
   cmd->add_option("--out", args->out, "Model file to write (.lpm)")->required();
   cmd->add_option("--components", args->options.components,
                   "Number of components to keep (0 = smallest count reaching --variance)")

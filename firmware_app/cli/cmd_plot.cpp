@@ -44,9 +44,9 @@ struct Range {
 };
 
 // Tableau 10 palette (BGR): distinct, and readable on white.
-const std::vector<cv::Scalar> kLineColours = {
-    {180, 119, 31}, {14, 127, 255}, {44, 160, 44},  {40, 39, 214},   {189, 103, 148},
-    {75, 86, 140},  {194, 119, 227}, {127, 127, 127}, {34, 189, 188}, {207, 190, 23}};
+const std::vector<cv::Scalar> kLineColours = {{180, 119, 31},  {14, 127, 255}, {44, 160, 44},   {40, 39, 214},
+                                              {189, 103, 148}, {75, 86, 140},  {194, 119, 227}, {127, 127, 127},
+                                              {34, 189, 188},  {207, 190, 23}};
 const cv::Scalar kBackground{255, 255, 255};
 const cv::Scalar kGrid{230, 230, 230};
 const cv::Scalar kFrame{110, 110, 110};
@@ -93,8 +93,7 @@ double tick_step(const Range& range, int count) {
 std::vector<double> ticks_within(const Range& range, double step) {
   std::vector<double> ticks;
   const double tolerance = step * 1e-9;
-  for (double tick = std::ceil(range.low / step) * step; tick <= range.high + tolerance;
-       tick += step) {
+  for (double tick = std::ceil(range.low / step) * step; tick <= range.high + tolerance; tick += step) {
     ticks.push_back(std::abs(tick) < tolerance ? 0.0 : tick);
   }
   return ticks;
@@ -142,8 +141,8 @@ std::vector<std::string> legend_labels(const std::vector<std::string>& files) {
 
 /// Abscissa: time_s when every file has it, else frame, so all lines share one axis.
 std::string x_column(const std::vector<CsvTable>& tables) {
-  const bool all_timed = std::all_of(tables.begin(), tables.end(),
-                                     [](const CsvTable& t) { return has_column(t, "time_s"); });
+  const bool all_timed =
+      std::all_of(tables.begin(), tables.end(), [](const CsvTable& t) { return has_column(t, "time_s"); });
   return all_timed ? "time_s" : "frame";
 }
 
@@ -154,8 +153,7 @@ Trajectories read_trajectories(const CsvTable& table, const std::string& x_name,
   // Draw in x order even if the rows are not.
   std::vector<std::size_t> order(data.x.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return data.x[a] < data.x[b]; });
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return data.x[a] < data.x[b]; });
   auto reorder = [&order](const std::vector<double>& values) {
     std::vector<double> sorted;
     for (std::size_t i : order) sorted.push_back(values[i]);
@@ -168,9 +166,8 @@ Trajectories read_trajectories(const CsvTable& table, const std::string& x_name,
 
 /// One line per run of finite points; a lone point between gaps becomes a dot so
 /// that it stays visible.
-void draw_series(cv::Mat& image, const std::vector<double>& x, const std::vector<double>& y,
-                 const Range& x_range, const Range& y_range, const cv::Rect& area,
-                 const cv::Scalar& colour) {
+void draw_series(cv::Mat& image, const std::vector<double>& x, const std::vector<double>& y, const Range& x_range,
+                 const Range& y_range, const cv::Rect& area, const cv::Scalar& colour) {
   // Sub-pixel coordinates: OpenCV's fixed-point shift keeps anti-aliased lines smooth.
   constexpr int kShift = 4;
   constexpr double kScale = 1 << kShift;
@@ -192,9 +189,8 @@ void draw_series(cv::Mat& image, const std::vector<double>& x, const std::vector
   flush();
 }
 
-void draw_panel(cv::Mat& image, const cv::Rect& area, const std::string& name,
-                const Range& x_range, double x_step, const Range& y_range, bool x_labels,
-                const std::string& x_name) {
+void draw_panel(cv::Mat& image, const cv::Rect& area, const std::string& name, const Range& x_range, double x_step,
+                const Range& y_range, bool x_labels, const std::string& x_name) {
   const int ticks_y = std::clamp(area.height / 40, 2, 8);
   const double y_step = tick_step(y_range, ticks_y);
   for (double tick : ticks_within(y_range, y_step)) {
@@ -212,16 +208,14 @@ void draw_panel(cv::Mat& image, const cv::Rect& area, const std::string& name,
     if (!x_labels) continue;
     const std::string label = tick_label(tick, x_step);
     const cv::Size size = text_size(label, kTickFontScale);
-    put_text(image, label, {px - size.width / 2, area.y + area.height + 8 + size.height},
-             kTickFontScale);
+    put_text(image, label, {px - size.width / 2, area.y + area.height + 8 + size.height}, kTickFontScale);
   }
   cv::rectangle(image, area, kFrame, 1);
   put_text(image, name, {area.x, area.y - 7}, kLabelFontScale);
   if (x_labels) {
     const std::string label = x_name == "time_s" ? "time (s)" : "frame";
     const cv::Size size = text_size(label, kLabelFontScale);
-    put_text(image, label, {area.x + (area.width - size.width) / 2, area.y + area.height + 40},
-             kLabelFontScale);
+    put_text(image, label, {area.x + (area.width - size.width) / 2, area.y + area.height + 40}, kLabelFontScale);
   }
 }
 
@@ -246,43 +240,37 @@ int legend_height(const std::vector<cv::Point>& layout) {
   return layout.empty() ? 0 : layout.back().y + kLegendRowHeight;
 }
 
-void draw_legend(cv::Mat& image, const std::vector<Trajectories>& files,
-                 const std::vector<cv::Point>& layout, int top) {
+void draw_legend(cv::Mat& image, const std::vector<Trajectories>& files, const std::vector<cv::Point>& layout,
+                 int top) {
   for (std::size_t i = 0; i < files.size(); ++i) {
     const int x = kMarginLeft + layout[i].x;
     const int middle = top + layout[i].y + kLegendRowHeight / 2;
-    cv::line(image, {x, middle}, {x + kSwatch, middle}, kLineColours[i % kLineColours.size()], 3,
-             cv::LINE_AA);
+    cv::line(image, {x, middle}, {x + kSwatch, middle}, kLineColours[i % kLineColours.size()], 3, cv::LINE_AA);
     put_text(image, files[i].label,
              {x + kSwatch + kSwatchGap, middle + text_size(files[i].label, kLabelFontScale).height / 2},
              kLabelFontScale);
   }
 }
 
-cv::Mat render_plot(const std::vector<Trajectories>& files, const PlotOptions& options,
-                    const std::string& x_name) {
+cv::Mat render_plot(const std::vector<Trajectories>& files, const PlotOptions& options, const std::string& x_name) {
   const int panels = static_cast<int>(options.columns.size());
   const int title_height = options.title.empty() ? 0 : kTitleHeight;
   const std::vector<cv::Point> legend = legend_layout(files, options.width);
   const int header = kMarginTop + title_height + legend_height(legend) + 6;
-  const int height = options.height > 0
-                         ? options.height
-                         : header + kMarginBottom + panels * (kDefaultPanelHeight + kPanelHeaderHeight) +
-                               (panels - 1) * kPanelGap;
-  const int panel_height =
-      (height - header - kMarginBottom - (panels - 1) * kPanelGap) / panels - kPanelHeaderHeight;
+  const int height = options.height > 0 ? options.height
+                                        : header + kMarginBottom + panels * (kDefaultPanelHeight + kPanelHeaderHeight) +
+                                              (panels - 1) * kPanelGap;
+  const int panel_height = (height - header - kMarginBottom - (panels - 1) * kPanelGap) / panels - kPanelHeaderHeight;
   const int panel_width = options.width - kMarginLeft - kMarginRight;
   if (panel_height < 40 || panel_width < 100) {
-    throw CommandError(fmt::format("{}x{} pixels is too small for {} panel(s)", options.width,
-                                   height, panels),
+    throw CommandError(fmt::format("{}x{} pixels is too small for {} panel(s)", options.width, height, panels),
                        kExitConfig);
   }
 
   cv::Mat image(height, options.width, CV_8UC3, kBackground);
   if (!options.title.empty()) {
     const cv::Size size = text_size(options.title, kTitleFontScale);
-    put_text(image, options.title, {(options.width - size.width) / 2, kMarginTop + size.height + 4},
-             kTitleFontScale);
+    put_text(image, options.title, {(options.width - size.width) / 2, kMarginTop + size.height + 4}, kTitleFontScale);
   }
   draw_legend(image, files, legend, kMarginTop + title_height);
 
@@ -297,8 +285,7 @@ cv::Mat render_plot(const std::vector<Trajectories>& files, const PlotOptions& o
     const Range y_range = padded_range(values, 0.06);
     const int top = header + panel * (panel_height + kPanelHeaderHeight + kPanelGap) + kPanelHeaderHeight;
     const cv::Rect area(kMarginLeft, top, panel_width, panel_height);
-    draw_panel(image, area, options.columns[panel], x_range, x_step, y_range, panel == panels - 1,
-               x_name);
+    draw_panel(image, area, options.columns[panel], x_range, x_step, y_range, panel == panels - 1, x_name);
     for (std::size_t i = 0; i < files.size(); ++i) {
       draw_series(image, files[i].x, files[i].columns[panel], x_range, y_range, area,
                   kLineColours[i % kLineColours.size()]);
@@ -332,19 +319,15 @@ void run_plot(const PlotOptions& options) {
 
 void add_plot_command(CLI::App& app) {
   auto options = std::make_shared<PlotOptions>();
-  CLI::App* plot = app.add_subcommand(
-      "plot", "Plot CSV columns over time (one panel per column, one line per file) to a PNG");
-  plot->add_option("files", options->files, "Per-frame CSV files (lipdrive process, ground truth)")
-      ->required();
-  plot->add_option("--columns", options->columns, "Columns to plot, comma-separated")
-      ->required()
-      ->delimiter(',');
+  CLI::App* plot =
+      app.add_subcommand("plot", "Plot CSV columns over time (one panel per column, one line per file) to a PNG");
+  plot->add_option("files", options->files, "Per-frame CSV files (lipdrive process, ground truth)")->required();
+  plot->add_option("--columns", options->columns, "Columns to plot, comma-separated")->required()->delimiter(',');
   plot->add_option("--out", options->out, "Image file to write (.png)")->required();
   plot->add_option("--width", options->width, "Image width in pixels")
       ->capture_default_str()
       ->check(CLI::Range(300, 10000));
-  plot->add_option("--height", options->height,
-                   "Image height in pixels (default: 240 px per panel plus margins)")
+  plot->add_option("--height", options->height, "Image height in pixels (default: 240 px per panel plus margins)")
       ->check(CLI::Range(150, 10000));
   plot->add_option("--title", options->title, "Title above the plot");
   plot->callback([options] { run_plot(*options); });

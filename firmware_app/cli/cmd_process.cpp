@@ -40,7 +40,7 @@ namespace {
 
 struct ProcessOptions {
   std::filesystem::path input;
-  std::filesystem::path out;  // empty: stdout
+  std::filesystem::path out;     // empty: stdout
   std::filesystem::path config;  // empty: the defaults
   // Each overrides the configuration's (or the default) when given.
   std::filesystem::path model;
@@ -48,9 +48,9 @@ struct ProcessOptions {
   std::filesystem::path predictor;
   bool include_landmarks = false;
   bool stats = false;
-  std::filesystem::path side;          // side-camera recording, frame for frame with the input
-  std::string side_facing = "right";   // where the face looks in the side view
-  int side_neutral_frames = 15;        // its first frames: the neutral pose the reference is fixed on
+  std::filesystem::path side;         // side-camera recording, frame for frame with the input
+  std::string side_facing = "right";  // where the face looks in the side view
+  int side_neutral_frames = 15;       // its first frames: the neutral pose the reference is fixed on
 };
 
 SimulatedCamera open_input(const std::filesystem::path& input);
@@ -60,8 +60,8 @@ SimulatedCamera open_input(const std::filesystem::path& input);
 class SideInput {
  public:
   explicit SideInput(const ProcessOptions& options)
-      : meter_(SideProfileSettings{.facing = options.side_facing == "left" ? ProfileFacing::kLeft
-                                                                            : ProfileFacing::kRight}),
+      : meter_(SideProfileSettings{.facing =
+                                       options.side_facing == "left" ? ProfileFacing::kLeft : ProfileFacing::kRight}),
         camera_(open_input(options.side)) {
     std::vector<cv::Mat> neutral;
     SimulatedCamera first(open_input(options.side));
@@ -120,7 +120,10 @@ class FrameRing {
     return closed_ ? nullptr : &slots_[(head_ + full_) % slots_.size()];
   }
   void publish() {
-    { std::lock_guard lock(mutex_); ++full_; }
+    {
+      std::lock_guard lock(mutex_);
+      ++full_;
+    }
     changed_.notify_all();
   }
   /// Consumer: the oldest full slot, waiting while none is.
@@ -139,7 +142,10 @@ class FrameRing {
   }
   /// Consumer: stop the producer (it returns from free_slot with nullptr).
   void close() {
-    { std::lock_guard lock(mutex_); closed_ = true; }
+    {
+      std::lock_guard lock(mutex_);
+      closed_ = true;
+    }
     changed_.notify_all();
   }
 
@@ -173,8 +179,7 @@ void decode_all(SimulatedCamera& camera, FrameRing& ring) {
           slot->kind = DecodedFrame::Kind::kCorrupt;
           slot->error = camera.last_error().value_or("a frame could not be decoded");
           break;
-        default:
-          slot->kind = DecodedFrame::Kind::kEnd;
+        default: slot->kind = DecodedFrame::Kind::kEnd;
       }
     } catch (const std::exception& e) {
       slot->kind = DecodedFrame::Kind::kError;
@@ -256,7 +261,10 @@ void run_process(const ProcessOptions& options) {
   FrameRing ring(4);
   std::thread decoder(decode_all, std::ref(camera), std::ref(ring));
   // Stops and joins the decoder however this scope is left.
-  const auto stop_decoder = [&](std::thread* t) { ring.close(); t->join(); };
+  const auto stop_decoder = [&](std::thread* t) {
+    ring.close();
+    t->join();
+  };
   const std::unique_ptr<std::thread, decltype(stop_decoder)> decoder_guard(&decoder, stop_decoder);
 
   for (;;) {

@@ -62,7 +62,8 @@ class Section {
     const auto value = node->value<double>();  // integers are numbers too
     if (!value || !(node->is_floating_point() || node->is_integer()))
       fail(key, fmt::format("must be a number, got {}", describe_type(*node)));
-    if (!(*value >= min && *value <= max)) fail(key, fmt::format("must be between {} and {}, got {}", min, max, *value));
+    if (!(*value >= min && *value <= max))
+      fail(key, fmt::format("must be between {} and {}, got {}", min, max, *value));
     return *value;
   }
 
@@ -258,7 +259,8 @@ void read_performer(Section performer, Config& config) {
   Config::Performer& p = config.performer;
   p.name = performer.string("name", "");
   p.profiles_dir = performer.string("profiles_dir", p.profiles_dir.string());
-  p.neutral_frames = performer.integer("neutral_frames", p.neutral_frames, kMinNeutralFrames, CalibrationCapture::kCapacity);
+  p.neutral_frames =
+      performer.integer("neutral_frames", p.neutral_frames, kMinNeutralFrames, CalibrationCapture::kCapacity);
   performer.reject_unknown_keys();
   if (p.name.empty()) return;
   try {
@@ -291,8 +293,8 @@ void read_channels(std::vector<Section> channels, Config& config) {
     if (const auto parsed = parse_signal(signal)) {
       spec.signal = *parsed;
     } else {
-      channel.fail("signal", fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, viseme_<name>)",
-                                         signal));
+      channel.fail("signal",
+                   fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, viseme_<name>)", signal));
     }
     spec.in_min = channel.number("in_min", 0, -kMaxIn, kMaxIn);
     spec.in_max = channel.number("in_max", 1, -kMaxIn, kMaxIn);
@@ -343,7 +345,7 @@ SerialPortSettings read_serial_line(Section& section, std::string_view default_d
 ModbusEndpoint read_modbus_link(Section& section) {
   ModbusEndpoint link;
   link.transport = section.one_of("transport", "tcp", {"tcp", "rtu"}) == "tcp" ? ModbusEndpoint::Transport::kTcp
-                                                                              : ModbusEndpoint::Transport::kRtu;
+                                                                               : ModbusEndpoint::Transport::kRtu;
   link.address = section.string("address", link.address);
   link.port = section.integer("port", link.port, 1, 65535);
   link.line = read_serial_line(section, kDefaultRtuDevice);

@@ -47,8 +47,8 @@ struct ModbusClientOptions {
   ModbusEndpoint link;
   std::vector<std::string> channels;  // written in this order from first_register; empty = all
   int first_register = 0;
-  int rate_hz = 50;        // writes per second at most
-  int timeout_ms = 100;    // per request
+  int rate_hz = 50;           // writes per second at most
+  int timeout_ms = 100;       // per request
   int max_backoff_ms = 5000;  // reconnect delay doubles up to this after failures
 };
 
@@ -97,7 +97,7 @@ struct Config {
     Type type = Type::kSim;
     SimulatedCameraOptions sim;  // input resolved: never empty
     V4l2Options v4l2;
-    std::string libcamera_id;    // "" = the first camera; size and rate as for v4l2
+    std::string libcamera_id;  // "" = the first camera; size and rate as for v4l2
   } camera;
 
   std::optional<Camera> side_camera;  // [side_camera] when enabled
@@ -114,9 +114,9 @@ struct Config {
   } status;
 
   struct Performer {
-    std::string name;                     // "" = uncalibrated defaults
+    std::string name;                                                   // "" = uncalibrated defaults
     std::filesystem::path profiles_dir = "/var/lib/lipdrive/profiles";  // <profiles_dir>/<name>.toml
-    int neutral_frames = 30;              // tracked frames of a neutral capture
+    int neutral_frames = 30;                                            // tracked frames of a neutral capture
   } performer;
 
   SafetySettings safety;

@@ -94,8 +94,7 @@ Mesh read_obj(const std::filesystem::path& path) {
   const auto& positions = reader.GetAttrib().vertices;
   Mesh mesh;
   mesh.vertices.resize(3, static_cast<Eigen::Index>(positions.size() / 3));
-  for (std::size_t i = 0; i < positions.size(); ++i)
-    mesh.vertices.data()[i] = static_cast<float>(positions[i]);
+  for (std::size_t i = 0; i < positions.size(); ++i) mesh.vertices.data()[i] = static_cast<float>(positions[i]);
 
   const auto vertex_count = static_cast<std::size_t>(mesh.vertices.cols());
   for (const auto& shape : reader.GetShapes()) {
@@ -109,8 +108,8 @@ Mesh read_obj(const std::filesystem::path& path) {
       for (int c = 0; c < 3; ++c) {
         const int index = shape.mesh.indices[3 * f + c].vertex_index;
         if (index < 0 || static_cast<std::size_t>(index) >= vertex_count)
-          throw CommandError(fmt::format("{}: face {} of shape '{}' refers to vertex {} of {}", path.string(),
-                                         f + 1, shape.name, index + 1, vertex_count),
+          throw CommandError(fmt::format("{}: face {} of shape '{}' refers to vertex {} of {}", path.string(), f + 1,
+                                         shape.name, index + 1, vertex_count),
                              kExitDataError);
         t[c] = static_cast<std::uint32_t>(index);
       }

@@ -37,12 +37,12 @@ toml::table range_table(const MeasureRange& range) { return toml::table{{"min", 
 }  // namespace
 
 fs::path profile_path(const fs::path& dir, const std::string& performer) {
-  const bool plain = !performer.empty() && performer[0] != '.' &&
-                     std::ranges::all_of(performer, [](char c) {
-                       return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
-                     });
+  const bool plain = !performer.empty() && performer[0] != '.' && std::ranges::all_of(performer, [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+  });
   if (!plain)
-    throw std::invalid_argument(fmt::format("performer name \"{}\" must be letters, digits, '-', '_' or '.'", performer));
+    throw std::invalid_argument(
+        fmt::format("performer name \"{}\" must be letters, digits, '-', '_' or '.'", performer));
   return dir / (performer + ".toml");
 }
 
@@ -61,8 +61,8 @@ PerformerProfile load_profile(const fs::path& file) {
   profile.open = read_range(root, file, "open");
   profile.width = read_range(root, file, "width");
   profile.protrusion = read_range(root, file, "protrusion");
-  for (const auto& [name, range] : {std::pair{"open", profile.open}, {"width", profile.width},
-                                    {"protrusion", profile.protrusion}}) {
+  for (const auto& [name, range] :
+       {std::pair{"open", profile.open}, {"width", profile.width}, {"protrusion", profile.protrusion}}) {
     if (range.min == range.max) malformed(file, fmt::format("{}.max", name), "must differ from min");
   }
   if (root["indices"].as_table()) {
@@ -86,9 +86,9 @@ void save_profile(const fs::path& file, const std::string& performer, const Perf
   toml::table root{
       {"version", kProfileVersion},
       {"performer", performer},
-      {"rest", toml::table{{"open", profile.rest.open},
-                           {"width", profile.rest.width},
-                           {"protrusion", profile.rest.protrusion}}},
+      {"rest",
+       toml::table{
+           {"open", profile.rest.open}, {"width", profile.rest.width}, {"protrusion", profile.rest.protrusion}}},
       {"open", range_table(profile.open)},
       {"width", range_table(profile.width)},
       {"protrusion", range_table(profile.protrusion)},
@@ -96,7 +96,8 @@ void save_profile(const fs::path& file, const std::string& performer, const Perf
   if (profile.face_indices) {
     toml::table indices;
     for (int i = 0; i < kNumFacialIndices; ++i)
-      indices.insert(kFacialIndices[static_cast<std::size_t>(i)].name, (*profile.face_indices)[static_cast<std::size_t>(i)]);
+      indices.insert(kFacialIndices[static_cast<std::size_t>(i)].name,
+                     (*profile.face_indices)[static_cast<std::size_t>(i)]);
     root.insert("indices", std::move(indices));
   }
   std::error_code ec;
@@ -111,7 +112,8 @@ void save_profile(const fs::path& file, const std::string& performer, const Perf
     if (!out) throw CommandError(fmt::format("{}: cannot write the profile", temporary.string()), kExitFailure);
   }
   fs::rename(temporary, file, ec);
-  if (ec) throw CommandError(fmt::format("{}: cannot write the profile: {}", file.string(), ec.message()), kExitFailure);
+  if (ec)
+    throw CommandError(fmt::format("{}: cannot write the profile: {}", file.string(), ec.message()), kExitFailure);
 }
 
 }  // namespace lipdrive

@@ -72,8 +72,7 @@ void Capture::run() {
         spdlog::info("{}: end of the recording", name_);
         ended_.store(true, std::memory_order_release);
         return;
-      case GrabStatus::kTimeout:
-        break;
+      case GrabStatus::kTimeout: break;
     }
   }
 }

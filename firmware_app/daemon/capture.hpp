@@ -9,8 +9,8 @@
 // thread; the counters and the state flags are atomics any thread may read.
 #pragma once
 
-#include "firmware_app/daemon/latest_frame.hpp"
 #include "drivers/frame_source.hpp"
+#include "firmware_app/daemon/latest_frame.hpp"
 
 #include <atomic>
 #include <chrono>

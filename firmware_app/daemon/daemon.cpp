@@ -29,9 +29,10 @@ bool model_mismatch(const Config& config, const PerformerProfile& profile) {
   if (!profile.face_indices) return false;
   const Compatibility check = model_compatibility(profile, load_model_file(config.model.file));
   if (check.warn)
-    spdlog::warn("performer {}: vertical mouth height is {}, the model's {}: expect clearly worse lips (docs/method.md 6)",
-                 config.performer.name, index_class_name(check.performer.vertical_mouth_height),
-                 index_class_name(check.model.vertical_mouth_height));
+    spdlog::warn(
+        "performer {}: vertical mouth height is {}, the model's {}: expect clearly worse lips (docs/method.md 6)",
+        config.performer.name, index_class_name(check.performer.vertical_mouth_height),
+        index_class_name(check.model.vertical_mouth_height));
   return check.warn;
 }
 
@@ -107,12 +108,13 @@ void Daemon::report_status() {
   // While the camera is away the latest result is the last frame before it left.
   const std::string mouth =
       latest.tracked && s.connected
-          ? fmt::format("mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f} ({}), drive open {:.2f} width {:.2f} "
-                        "protrusion {:.2f}",
-                        latest.measures.height_fit, latest.measures.width_fit,
-                        latest.side_used ? latest.protrusion_side : latest.measures.protrusion_3d,
-                        latest.side_used ? "side camera" : "3D fit", latest.signals[Signal::kOpen],
-                        latest.signals[Signal::kWidth], latest.signals[Signal::kProtrusion])
+          ? fmt::format(
+                "mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f} ({}), drive open {:.2f} width {:.2f} "
+                "protrusion {:.2f}",
+                latest.measures.height_fit, latest.measures.width_fit,
+                latest.side_used ? latest.protrusion_side : latest.measures.protrusion_3d,
+                latest.side_used ? "side camera" : "3D fit", latest.signals[Signal::kOpen],
+                latest.signals[Signal::kWidth], latest.signals[Signal::kProtrusion])
           : std::string("not tracked");
   std::string failing;
   for (const auto& output : outputs_)
@@ -132,8 +134,7 @@ void Daemon::print_stats() const {
              s.captured, s.processed, s.tracked, s.dropped, s.corrupt, s.lost_track, s.disconnects);
   fmt::print(stderr, "capture->processed latency: median {:.2f} ms, p99 {:.2f} ms\n", s.processed_median_ms,
              s.processed_p99_ms);
-  fmt::print(stderr, "capture->output latency: median {:.2f} ms, p99 {:.2f} ms\n", s.output_median_ms,
-             s.output_p99_ms);
+  fmt::print(stderr, "capture->output latency: median {:.2f} ms, p99 {:.2f} ms\n", s.output_median_ms, s.output_p99_ms);
   for (const auto& output : outputs_) {
     if (const LatencyHistogram* wire = output->wire_latency(); wire && wire->count() > 0)
       fmt::print(stderr, "capture->wire latency, {}: median {:.2f} ms, p99 {:.2f} ms ({} frames)\n", output->describe(),

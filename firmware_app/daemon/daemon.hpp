@@ -22,8 +22,8 @@ namespace lipdrive {
 
 /// What `lipdrive run` adds to the configuration.
 struct DaemonOptions {
-  bool record = false;             // record a take from the start
-  std::uint64_t max_frames = 0;    // stop after this many processed frames; 0 = never
+  bool record = false;                             // record a take from the start
+  std::uint64_t max_frames = 0;                    // stop after this many processed frames; 0 = never
   std::chrono::microseconds watchdog_interval{0};  // sd_notify WATCHDOG=1 this often; 0 = off
 };
 

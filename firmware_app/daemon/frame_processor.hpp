@@ -17,10 +17,10 @@
 namespace lipdrive {
 
 struct FrameMeasurement {
-  bool tracked = false;    // a face was tracked and the fit explains it: `measures` is valid
+  bool tracked = false;  // a face was tracked and the fit explains it: `measures` is valid
   MouthMeasures measures;
   VisemeWeights visemes{};  // valid when `tracked`; all zero when the model has no viseme poses
-  Landmarks2D landmarks;   // the tracked landmarks, valid when `tracked`
+  Landmarks2D landmarks;    // the tracked landmarks, valid when `tracked`
   // Time spent in each stage (ms); NaN when the stage did not run for this frame.
   double landmarks_ms = 0, fit_ms = 0, measures_ms = 0;
 };

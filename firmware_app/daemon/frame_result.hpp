@@ -17,10 +17,10 @@ struct FrameResult {
   std::int64_t processed_time_ns = 0;  // CLOCK_MONOTONIC when the measures were ready
   double media_time_s = 0;
   bool tracked = false;
-  MouthMeasures measures;    // valid when tracked, zero otherwise
-  VisemeWeights visemes{};   // FrameMeasurement::visemes when tracked, zero otherwise
-  DriveSignals signals;      // calibrated values for the drive, zero when not tracked
-  bool side_used = false;    // protrusion came from the side camera (protrusion_side)
+  MouthMeasures measures;      // valid when tracked, zero otherwise
+  VisemeWeights visemes{};     // FrameMeasurement::visemes when tracked, zero otherwise
+  DriveSignals signals;        // calibrated values for the drive, zero when not tracked
+  bool side_used = false;      // protrusion came from the side camera (protrusion_side)
   double protrusion_side = 0;  // side-view protrusion over the nose length, when side_used
   int width = 0, height = 0;   // frame size in pixels
 };

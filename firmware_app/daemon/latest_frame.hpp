@@ -74,9 +74,9 @@ class LatestFrame {
   static constexpr std::uint32_t kIndexMask = 3, kFresh = 4;
 
   std::array<Slot, 3> slots_{};
-  std::uint32_t back_ = 0;                     // writer's
-  std::atomic<std::uint32_t> middle_{1};       // shared: index | kFresh
-  std::uint32_t front_ = 2;                    // reader's
+  std::uint32_t back_ = 0;                // writer's
+  std::atomic<std::uint32_t> middle_{1};  // shared: index | kFresh
+  std::uint32_t front_ = 2;               // reader's
   std::atomic<std::uint64_t> dropped_{0};
 };
 

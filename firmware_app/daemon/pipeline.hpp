@@ -55,20 +55,19 @@ struct PipelineSettings {
 
 struct PipelineStats {
   std::uint64_t captured = 0, processed = 0, tracked = 0;
-  std::uint64_t dropped = 0;      // frames replaced by a newer one before processing
-  std::uint64_t lost_track = 0;   // times a tracked face was lost
-  std::uint64_t disconnects = 0;  // times the source went away
-  std::uint64_t corrupt = 0;      // frames the source could not decode
+  std::uint64_t dropped = 0;                             // frames replaced by a newer one before processing
+  std::uint64_t lost_track = 0;                          // times a tracked face was lost
+  std::uint64_t disconnects = 0;                         // times the source went away
+  std::uint64_t corrupt = 0;                             // frames the source could not decode
   double processed_median_ms = 0, processed_p99_ms = 0;  // capture -> processed
   double output_median_ms = 0, output_p99_ms = 0;        // capture -> output thread
-  double seconds = 0;             // since start()
-  bool connected = true;          // the source currently delivers
+  double seconds = 0;                                    // since start()
+  bool connected = true;                                 // the source currently delivers
 };
 
 class Pipeline {
  public:
-  Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor,
-           PipelineSettings settings);
+  Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor, PipelineSettings settings);
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
@@ -139,13 +138,13 @@ class Pipeline {
 
   // Processing thread's.
   PerformerProfile profile_;
-  CalibrationCapture neutral_;    // a calibrate command's neutral frames
+  CalibrationCapture neutral_;  // a calibrate command's neutral frames
   bool capturing_neutral_ = false;
   std::uint32_t calibrate_requests_seen_ = 0;
   std::int64_t last_watchdog_ns_ = 0;
   bool was_tracked_ = false;
 
-  ChannelBank channels_;  // output thread's
+  ChannelBank channels_;            // output thread's
   std::int64_t max_result_age_ns_;  // older results do not count as tracking
   LatencyHistogram processed_latency_, output_latency_;
 

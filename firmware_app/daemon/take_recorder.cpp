@@ -79,7 +79,8 @@ void TakeRecorder::run() {
     apply_request();
     drain();
     if (fd_.valid() && std::chrono::steady_clock::now() - last_sync_ >= flush_interval_) {
-      if (::fdatasync(fd_.get()) != 0) fail(fmt::format("{}: recording stopped: {}", file_.string(), std::strerror(errno)));
+      if (::fdatasync(fd_.get()) != 0)
+        fail(fmt::format("{}: recording stopped: {}", file_.string(), std::strerror(errno)));
       last_sync_ = std::chrono::steady_clock::now();
     }
     if (quit) break;
@@ -137,8 +138,8 @@ void TakeRecorder::drain() {
   lines_.clear();
   for (; fd_.valid() && tail != head; ++tail) {
     const FrameResult& r = ring_[tail % kRingSize];
-    append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr,
-                            r.visemes, nullptr);
+    append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr, r.visemes,
+                            nullptr);
     fmt::format_to(std::back_inserter(lines_), ",{}\n", r.capture_time_ns);
   }
   // Without an open take the rows are discarded.

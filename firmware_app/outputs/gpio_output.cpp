@@ -43,8 +43,7 @@ std::unique_ptr<GpioLines> open_gpio_chip(const GpioOptions& options) {
   return open_gpiod_chip(options.chip, std::move(specs));
 }
 
-GpioOutput::GpioOutput(const GpioOptions& options, std::unique_ptr<GpioLines> lines,
-                       DriveControl& control)
+GpioOutput::GpioOutput(const GpioOptions& options, std::unique_ptr<GpioLines> lines, DriveControl& control)
     : lines_(std::move(lines)),
       control_(control),
       status_{options.status_line, std::nullopt},
@@ -89,8 +88,7 @@ void GpioOutput::poll_buttons(std::int64_t now_ns, bool recording) {
   }
   if (pressed(record_, now_ns)) {
     control_.recording_request.store(recording ? 0 : 1);
-    spdlog::info("{}: record button pressed: {} the take", description_,
-                 recording ? "stop" : "start");
+    spdlog::info("{}: record button pressed: {} the take", description_, recording ? "stop" : "start");
   }
 }
 

@@ -19,7 +19,8 @@ std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveCon
     outputs.push_back(std::make_unique<SerialOutput>(options, config.channels));
   if (config.outputs.gpio.enabled) {
     try {
-      outputs.push_back(std::make_unique<GpioOutput>(config.outputs.gpio, open_gpio_chip(config.outputs.gpio), control));
+      outputs.push_back(
+          std::make_unique<GpioOutput>(config.outputs.gpio, open_gpio_chip(config.outputs.gpio), control));
     } catch (const GpioError& e) {
       throw ConfigError(fmt::format("{}: key outputs.gpio: {}", config.file.string(), e.what()));
     }

@@ -87,7 +87,8 @@ void ModbusClientOutput::run() {
     const std::int64_t attempt_ns = monotonic_ns();
     if (write(frame)) {
       written = version;
-      if (backoff_.failing()) spdlog::info("{}: writing again after {} failed attempts", description_, failed_in_outage);
+      if (backoff_.failing())
+        spdlog::info("{}: writing again after {} failed attempts", description_, failed_in_outage);
       backoff_.succeeded();
       failed_in_outage = 0;
       if (!sleep_until(attempt_ns + period_ns)) break;

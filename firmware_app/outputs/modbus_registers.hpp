@@ -9,15 +9,15 @@ namespace lipdrive {
 /// Register addresses (0-based, as on the wire).
 namespace modbus_map {
 // Input registers (function 4).
-inline constexpr int kStatus = 0;          // the status word (daemon/status_word.hpp)
-inline constexpr int kHeartbeat = 1;       // DriveFrame::counter, low 16 bits
-inline constexpr int kSequenceHigh = 2;    // DriveFrame::sequence, low 32 bits, high word first
+inline constexpr int kStatus = 0;        // the status word (daemon/status_word.hpp)
+inline constexpr int kHeartbeat = 1;     // DriveFrame::counter, low 16 bits
+inline constexpr int kSequenceHigh = 2;  // DriveFrame::sequence, low 32 bits, high word first
 inline constexpr int kSequenceLow = 3;
-inline constexpr int kLatencyUsHigh = 4;   // capture -> processed, µs, 32 bits, high word first
+inline constexpr int kLatencyUsHigh = 4;  // capture -> processed, µs, 32 bits, high word first
 inline constexpr int kLatencyUsLow = 5;
-inline constexpr int kFpsTenths = 6;       // processed frames per second × 10
+inline constexpr int kFpsTenths = 6;  // processed frames per second × 10
 inline constexpr int kChannelCount = 7;
-inline constexpr int kFirstChannel = 16;   // one register per channel, ChannelBank order
+inline constexpr int kFirstChannel = 16;  // one register per channel, ChannelBank order
 // Holding registers (functions 3, 6, 16, 22, 23).
 inline constexpr int kOutputEnable = 0;    // 0 off, anything else on
 inline constexpr int kCalibrate = 1;       // write 1: calibrate neutral; reads 0

@@ -35,10 +35,11 @@ ModbusServerOutput::ModbusServerOutput(const ModbusServerOptions& options, std::
           neutral.values[static_cast<std::size_t>(i)] = channels[static_cast<std::size_t>(i)].neutral;
         return neutral;
       }()),
-      server_(options.link, options.max_clients, modbus_map::kFirstChannel + channel_count_,
-              modbus_map::kFirstOverride + channel_count_,
-              [this](std::span<std::uint16_t> input, std::span<std::uint16_t> holding) { refresh(input, holding); },
-              [this](int address, std::span<const std::uint16_t> values) { written(address, values); }) {}
+      server_(
+          options.link, options.max_clients, modbus_map::kFirstChannel + channel_count_,
+          modbus_map::kFirstOverride + channel_count_,
+          [this](std::span<std::uint16_t> input, std::span<std::uint16_t> holding) { refresh(input, holding); },
+          [this](int address, std::span<const std::uint16_t> values) { written(address, values); }) {}
 
 void ModbusServerOutput::refresh(std::span<std::uint16_t> input, std::span<std::uint16_t> holding) const {
   using namespace modbus_map;

@@ -27,8 +27,7 @@ class ModbusServerOutput : public Output {
   /// Binds the port or opens the serial device at once: throws std::runtime_error when that
   /// fails, std::invalid_argument for more than kMaxChannels channels. `control` must outlive
   /// the output.
-  ModbusServerOutput(const ModbusServerOptions& options, std::span<const ChannelSpec> channels,
-                     DriveControl& control);
+  ModbusServerOutput(const ModbusServerOptions& options, std::span<const ChannelSpec> channels, DriveControl& control);
 
   void publish(const DriveFrame& frame) override { latest_.publish(frame); }
   std::string describe() const override { return "modbus server " + server_.describe(); }

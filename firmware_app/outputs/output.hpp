@@ -18,14 +18,14 @@ namespace lipdrive {
 
 /// One step of the drive: the channel values after the safety layer. Trivially copyable.
 struct DriveFrame {
-  std::uint32_t counter = 0;          // +1 per drive frame, a heartbeat for remote ends
-  std::uint64_t sequence = 0;         // source frame sequence of the newest result
-  std::int64_t capture_time_ns = 0;   // CLOCK_MONOTONIC capture time of that frame
-  std::int64_t time_ns = 0;           // CLOCK_MONOTONIC when these values were computed
-  bool new_result = false;            // false: an idle tick (no newer frame; easing goes on)
-  std::uint16_t status = 0;           // StatusBit, from status_word()
-  float fps = 0;                      // processed frames per second, recent
-  float latency_ms = 0;               // capture -> processed of the newest result
+  std::uint32_t counter = 0;         // +1 per drive frame, a heartbeat for remote ends
+  std::uint64_t sequence = 0;        // source frame sequence of the newest result
+  std::int64_t capture_time_ns = 0;  // CLOCK_MONOTONIC capture time of that frame
+  std::int64_t time_ns = 0;          // CLOCK_MONOTONIC when these values were computed
+  bool new_result = false;           // false: an idle tick (no newer frame; easing goes on)
+  std::uint16_t status = 0;          // StatusBit, from status_word()
+  float fps = 0;                     // processed frames per second, recent
+  float latency_ms = 0;              // capture -> processed of the newest result
   int channel_count = 0;
   std::array<double, kMaxChannels> values{};  // output units, ChannelBank order
 };

@@ -8,8 +8,8 @@
 #include <algorithm>
 #include <cstring>
 #include <set>
-#include <thread>
 #include <stdexcept>
+#include <thread>
 
 namespace lipdrive {
 namespace {
@@ -35,7 +35,8 @@ void check_line_name(const std::string& name) {
 }
 
 void check_servo_channel(const ChannelSpec& channel, int servo, std::set<int>& used) {
-  const std::string what = "serial output (maestro): servo " + std::to_string(servo) + " on channel '" + channel.name + "'";
+  const std::string what =
+      "serial output (maestro): servo " + std::to_string(servo) + " on channel '" + channel.name + "'";
   if (servo < 0 || servo > kMaxServo) throw std::invalid_argument(what + ": servo number outside 0..23");
   if (!used.insert(servo).second) throw std::invalid_argument(what + ": servo number used twice");
   const double max_us = wire::kMaestroMaxTarget / 4.0;

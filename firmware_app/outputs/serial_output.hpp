@@ -19,8 +19,8 @@
 #include "core/drive_channels.hpp"
 #include "drivers/serial_port.hpp"
 #include "firmware_app/config/config.hpp"
-#include "firmware_app/outputs/output.hpp"
 #include "firmware_app/daemon/latency_histogram.hpp"
+#include "firmware_app/outputs/output.hpp"
 
 #include <atomic>
 #include <cstdint>
@@ -75,7 +75,7 @@ class SerialOutput final : public Output {
   std::vector<double> picked_;        // this frame's values of the picked channels
   std::vector<std::uint8_t> buffer_;  // sized once for the longest encoding of the mode
 
-  std::unique_ptr<SerialPort> port_;  // null while the port is gone
+  std::unique_ptr<SerialPort> port_;                 // null while the port is gone
   std::size_t pending_begin_ = 0, pending_end_ = 0;  // unwritten bytes of the last frame in buffer_
   std::int64_t pending_capture_ns_ = 0;              // its capture time; 0 = an idle tick
   std::uint32_t pending_counter_ = 0;                // its DriveFrame::counter

@@ -52,8 +52,7 @@ std::optional<std::vector<std::string>> split_fields(std::string_view line) {
 }
 
 [[noreturn]] void data_error(const CsvTable& table, int line, const std::string& problem) {
-  throw CommandError(fmt::format("{}:{}: {}", table.path.string(), line, problem),
-                     kExitDataError);
+  throw CommandError(fmt::format("{}:{}: {}", table.path.string(), line, problem), kExitDataError);
 }
 
 }  // namespace
@@ -80,16 +79,14 @@ CsvTable read_csv_table(const std::filesystem::path& path) {
     }
     if (fields->size() != table.header.size()) {
       data_error(table, line_number,
-                 fmt::format("expected {} fields as in the header, found {}",
-                             table.header.size(), fields->size()));
+                 fmt::format("expected {} fields as in the header, found {}", table.header.size(), fields->size()));
     }
     table.rows.push_back(std::move(*fields));
     table.line_numbers.push_back(line_number);
   }
   if (in.bad()) throw CommandError(fmt::format("error reading {}", path.string()), kExitNoInput);
   if (table.header.empty()) {
-    throw CommandError(fmt::format("{}: empty CSV file, expected a header line", path.string()),
-                       kExitDataError);
+    throw CommandError(fmt::format("{}: empty CSV file, expected a header line", path.string()), kExitDataError);
   }
   return table;
 }
@@ -101,8 +98,7 @@ bool has_column(const CsvTable& table, std::string_view name) {
 std::size_t column_index(const CsvTable& table, std::string_view name) {
   const auto it = std::find(table.header.begin(), table.header.end(), name);
   if (it == table.header.end()) {
-    throw CommandError(fmt::format("{}: no column '{}'", table.path.string(), name),
-                       kExitDataError);
+    throw CommandError(fmt::format("{}: no column '{}'", table.path.string(), name), kExitDataError);
   }
   return static_cast<std::size_t>(it - table.header.begin());
 }
@@ -120,8 +116,7 @@ std::vector<double> numeric_column(const CsvTable& table, std::string_view name)
     double value = 0;
     const auto [end, error] = std::from_chars(field.data(), field.data() + field.size(), value);
     if (error != std::errc{} || end != field.data() + field.size()) {
-      data_error(table, table.line_numbers[row],
-                 fmt::format("column '{}': '{}' is not a number", name, field));
+      data_error(table, table.line_numbers[row], fmt::format("column '{}': '{}' is not a number", name, field));
     }
     values.push_back(value);
   }

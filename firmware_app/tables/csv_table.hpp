@@ -13,10 +13,10 @@
 namespace lipdrive {
 
 struct CsvTable {
-  std::filesystem::path path;                 // for error messages
-  std::vector<std::string> header;            // column names in file order
+  std::filesystem::path path;                  // for error messages
+  std::vector<std::string> header;             // column names in file order
   std::vector<std::vector<std::string>> rows;  // each has header.size() fields
-  std::vector<int> line_numbers;              // 1-based file line of each row
+  std::vector<int> line_numbers;               // 1-based file line of each row
 };
 
 /// Reads a whole CSV file; blank lines are skipped. Throws CommandError:

@@ -58,8 +58,7 @@ bool is_silence(const AlignedWord& word) { return word.word == "sil" || word.wor
 FrameRange frame_range(const AlignedWord& word) {
   // Frame f spans [1000 f, 1000 (f + 1)); end is exclusive, so the last frame
   // holds time end - 1.
-  return {static_cast<int>(word.start / kAlignUnitsPerFrame),
-          static_cast<int>((word.end - 1) / kAlignUnitsPerFrame)};
+  return {static_cast<int>(word.start / kAlignUnitsPerFrame), static_cast<int>((word.end - 1) / kAlignUnitsPerFrame)};
 }
 
 std::set<int> speech_frames(std::span<const AlignedWord> words) {
@@ -72,10 +71,8 @@ std::set<int> speech_frames(std::span<const AlignedWord> words) {
   return frames;
 }
 
-std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words,
-                                           std::string_view word) {
-  const auto it = std::find_if(words.begin(), words.end(),
-                               [word](const AlignedWord& w) { return w.word == word; });
+std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word) {
+  const auto it = std::find_if(words.begin(), words.end(), [word](const AlignedWord& w) { return w.word == word; });
   if (it == words.end()) return std::nullopt;
   return frame_range(*it);
 }

@@ -42,7 +42,6 @@ FrameRange frame_range(const AlignedWord& word);
 std::set<int> speech_frames(std::span<const AlignedWord> words);
 
 /// The frame range of the first occurrence of `word`, or nullopt when absent.
-std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words,
-                                           std::string_view word);
+std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word);
 
 }  // namespace lipdrive

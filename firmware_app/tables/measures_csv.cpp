@@ -40,8 +40,10 @@ void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, cons
   if (!landmarks) return;
   for (int axis = 0; axis < 2; ++axis)
     for (int i = 0; i < kNumLandmarks; ++i) {
-      if (measures) fmt::format_to(std::back_inserter(row), ",{:.3f}", (*landmarks)(axis, i));
-      else row.push_back(',');
+      if (measures)
+        fmt::format_to(std::back_inserter(row), ",{:.3f}", (*landmarks)(axis, i));
+      else
+        row.push_back(',');
     }
 }
 

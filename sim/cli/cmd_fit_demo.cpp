@@ -101,7 +101,8 @@ void run_fit_demo(const FitDemoArgs& args) {
     throw CommandError(fmt::format("{}: {}", args.model.string(), e.what()), kExitDataError);
   }
 
-  const Eigen::Matrix<double, 3, 4> camera = demo_camera(pose_landmarks(model, model.pose_index("neutral").value_or(0)));
+  const Eigen::Matrix<double, 3, 4> camera =
+      demo_camera(pose_landmarks(model, model.pose_index("neutral").value_or(0)));
   std::mt19937 rng(1);
   fmt::print("{}: {} poses, fitting {} of {} components{}\n", args.model.string(), model.num_poses(),
              fitter->num_components(), model.num_components(), fitter->truncated_components() ? " (truncated)" : "");
@@ -112,8 +113,8 @@ void run_fit_demo(const FitDemoArgs& args) {
 
   std::vector<double> times;
   for (const int pose : demo_poses(model)) {
-    const Landmarks2D truth = (camera.topLeftCorner<2, 3>() * pose_landmarks(model, pose)).colwise() +
-                              camera.topRightCorner<2, 1>();
+    const Landmarks2D truth =
+        (camera.topLeftCorner<2, 3>() * pose_landmarks(model, pose)).colwise() + camera.topRightCorner<2, 1>();
     const Landmarks2D observed = with_noise(truth, args.noise_px, rng);
     FitOutput fit = Fitter::initial_output();
     fitter->fit(observed, fit);

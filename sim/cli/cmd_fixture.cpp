@@ -61,9 +61,9 @@ Landmarks2D detect_landmarks(const cv::Mat& portrait, const fs::path& portrait_p
                        kExitDataError);
   }
   if (predictor.num_parts() != kNumLandmarks)
-    throw CommandError(fmt::format("{}: predicts {} landmarks, not {}", predictor_path.string(),
-                                   predictor.num_parts(), kNumLandmarks),
-                       kExitDataError);
+    throw CommandError(
+        fmt::format("{}: predicts {} landmarks, not {}", predictor_path.string(), predictor.num_parts(), kNumLandmarks),
+        kExitDataError);
 
   // Portraits are small: one upsampling step brings a face of 40 px up to the detector's
   // 80 px window. Among several detections (a round badge can pass for a face) the most
@@ -84,8 +84,7 @@ Landmarks2D detect_landmarks(const cv::Mat& portrait, const fs::path& portrait_p
   const dlib::full_object_detection shape = predictor(image, best->rect);
 
   Landmarks2D landmarks;
-  for (int i = 0; i < kNumLandmarks; ++i)
-    landmarks.col(i) << scale * shape.part(i).x(), scale * shape.part(i).y();
+  for (int i = 0; i < kNumLandmarks; ++i) landmarks.col(i) << scale * shape.part(i).x(), scale * shape.part(i).y();
   return landmarks;
 }
 
@@ -177,16 +176,16 @@ void add_fixture_command(CLI::App& app) {
   talking->add_option("--portrait", args->portrait, "Frontal face photo (e.g. astronaut.png)")->required();
   talking->add_option("--out", args->out, "Output directory")->required();
   talking->add_option("--predictor", args->predictor, "dlib 68-point shape predictor")->capture_default_str();
-  talking->add_option("--fps", args->fps, "Frame rate of the clip")->capture_default_str()->check(
-      CLI::PositiveNumber);
+  talking->add_option("--fps", args->fps, "Frame rate of the clip")->capture_default_str()->check(CLI::PositiveNumber);
   talking->callback([args] { write_talking_face(*args); });
 
   auto side_args = std::make_shared<SideViewArgs>();
   auto* side = fixture->add_subcommand(
       "side-view", "The built-in head in profile (side_view.avi) and its upper-lip protrusion (side_view_truth.csv)");
   side->add_option("--out", side_args->out, "Output directory")->required();
-  side->add_option("--fps", side_args->fps, "Frame rate of the clip")->capture_default_str()->check(
-      CLI::PositiveNumber);
+  side->add_option("--fps", side_args->fps, "Frame rate of the clip")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   side->callback([side_args] { write_side_view(*side_args); });
 }
 
