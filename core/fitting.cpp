@@ -281,26 +281,20 @@ class FixedSizeFitter final : public FitterBase {
   Mat<3 * kNumLandmarks, K> all_basis_;  // V̂ at all 68 landmarks, rows x, y, z per landmark
 };
 
+template <int K, LandmarkSet S>
+std::unique_ptr<FitterBase> fitter_for(const MorphableModel& model, int num_components, FitSettings settings) {
+  return std::make_unique<FixedSizeFitter<landmark_count(S), K>>(model, landmark_indices(S), num_components, settings);
+}
+
 template <int K>
 std::unique_ptr<FitterBase> make_fixed_size_fitter(const MorphableModel& model, LandmarkSet set, int num_components,
                                                    FitSettings settings) {
-  const std::span<const int> indices = landmark_indices(set);
   switch (set) {
-    case LandmarkSet::F1:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F1), K>>(model, indices, num_components,
-                                                                                   settings);
-    case LandmarkSet::F2:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F2), K>>(model, indices, num_components,
-                                                                                   settings);
-    case LandmarkSet::F3:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F3), K>>(model, indices, num_components,
-                                                                                   settings);
-    case LandmarkSet::F4:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F4), K>>(model, indices, num_components,
-                                                                                   settings);
-    case LandmarkSet::F5:
-      return std::make_unique<FixedSizeFitter<landmark_count(LandmarkSet::F5), K>>(model, indices, num_components,
-                                                                                   settings);
+    case LandmarkSet::F1: return fitter_for<K, LandmarkSet::F1>(model, num_components, settings);
+    case LandmarkSet::F2: return fitter_for<K, LandmarkSet::F2>(model, num_components, settings);
+    case LandmarkSet::F3: return fitter_for<K, LandmarkSet::F3>(model, num_components, settings);
+    case LandmarkSet::F4: return fitter_for<K, LandmarkSet::F4>(model, num_components, settings);
+    case LandmarkSet::F5: return fitter_for<K, LandmarkSet::F5>(model, num_components, settings);
   }
   throw std::invalid_argument("Fitter: unknown landmark set");
 }

@@ -120,8 +120,7 @@ void run_calibrate(const CalibrateOptions& options) {
 
 void add_calibrate_command(CLI::App& app) {
   auto options = std::make_shared<CalibrateOptions>();
-  CLI::App* cmd =
-      app.add_subcommand("calibrate", "Measure a performer's neutral face and range of motion into a profile");
+  CLI::App* cmd = app.add_subcommand("calibrate", "A performer's profile from their neutral face and range of motion");
   cmd->add_option("--config", options->config, "configuration file: model, tracker, camera, [performer]")->required();
   cmd->add_option("--performer", options->performer, "the performer's name (the profile file's name)")->required();
   cmd->add_option("--input", options->input, "a recording instead of the configured camera");
