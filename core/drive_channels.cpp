@@ -51,7 +51,8 @@ std::span<const double> ChannelBank::step(const DriveSignals& signals, const Dri
   const bool live = input.tracked && input.enabled;
   if (live) last_tracked_ns_ = input.now_ns;
   // Within the hold time a loss keeps the last tracked targets at full gain.
-  const bool holding = input.enabled && !live && input.now_ns - last_tracked_ns_ <= safety_.hold_ns;
+  const bool holding =
+      input.enabled && !live && last_tracked_ns_ && input.now_ns - *last_tracked_ns_ <= safety_.hold_ns;
   fail_safe_ = !live && !holding;
   const double gain_step = safety_.ease_ns > 0 ? dt_s * 1e9 / static_cast<double>(safety_.ease_ns) : 1.0;
   gain_ = fail_safe_ ? std::max(0.0, gain_ - gain_step) : std::min(1.0, gain_ + gain_step);

@@ -89,7 +89,7 @@ class ChannelBank {
   SafetySettings safety_;
   double gain_ = 0;  // 0 at start: the drive eases in from neutral when tracking first arrives
   bool fail_safe_ = true;
-  std::int64_t last_tracked_ns_ = std::numeric_limits<std::int64_t>::min();
+  std::optional<std::int64_t> last_tracked_ns_;  // none until the face is first tracked: nothing to hold
   std::int64_t last_step_ns_ = 0;
   bool stepped_ = false;
 };

@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 using test::kModel;
-const fs::path kTake = fs::path(LIPDRIVE_SHARED_FIXTURES) / "grid" / "bbaf2n.mpg";
+const fs::path kTake = test::shared_fixtures() / "grid" / "bbaf2n.mpg";
 constexpr std::uint64_t kFinalSilenceFrom = 54;  // bbaf2n.align: "53000 74500 sil", frames 54..74
 
 /// The open channel's value for every processed frame, by source frame.
@@ -46,7 +46,7 @@ class OpenChannelByFrame : public Output {
 };
 
 TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
-  if (!fs::exists(kTake)) GTEST_SKIP() << "no shared fixtures at " << kTake;
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kTake);
   const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_test_calibrate_{}", ::getpid());
   fs::create_directories(dir);
   const fs::path config = dir / "lipdrive.toml";
@@ -79,9 +79,11 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
   take.input = kTake;
   take.real_time = true;  // no frame is dropped at 25 fps
   static const MorphableModel model = load_model_file(kModel);
+  DriveControl control;
   Pipeline pipeline(
       std::make_unique<SimulatedCamera>(take),
-      std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor()), settings);
+      std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor()), settings,
+      control);
   pipeline.set_profile(profile);
   OpenChannelByFrame open;
   pipeline.add_output(open);

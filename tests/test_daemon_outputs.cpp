@@ -49,7 +49,7 @@ std::string stats_line(const std::string& log, const std::string& prefix) {
 }
 
 TEST(DaemonOutputs, ModbusAndSerialFollowTheMouthAndEndNeutral) {
-  if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
+  LIPDRIVE_REQUIRE_BUILT(kClip);
   const test::TempDir dir;
   const test::PtyPair line(dir.path() / "serial");
   test::PtyReader reader(line.b);

@@ -70,6 +70,17 @@ TEST(ChannelBank, StartsNeutralAndEasesInWithoutAJump) {
   EXPECT_FALSE(bank.fail_safe_active());
 }
 
+TEST(ChannelBank, NeverTrackedIsFailSafeFromTheFirstStep) {
+  // CLOCK_MONOTONIC on a board that has been up for an hour: there is no tracked frame to hold.
+  const ChannelSpec spec = open_channel();
+  ChannelBank bank({&spec, 1}, {.hold_ns = 200 * kMs, .ease_ns = 300 * kMs});
+  const std::int64_t up_an_hour = 3600 * 1000 * kMs;
+  for (std::int64_t now = up_an_hour; now < up_an_hour + 100 * kMs; now += kFrameNs) {
+    EXPECT_EQ(bank.step(open_at(1), {.tracked = false, .now_ns = now})[0], 1200);
+    EXPECT_TRUE(bank.fail_safe_active()) << "no hold before the face was ever tracked";
+  }
+}
+
 /// Tracks for a second, then loses the face; returns the frame time at which neutral is reached.
 std::int64_t time_to_neutral(ChannelBank& bank, std::int64_t& now) {
   for (; now < 1000 * kMs; now += kFrameNs) bank.step(open_at(0.9f), {.tracked = true, .now_ns = now});

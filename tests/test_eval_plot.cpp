@@ -3,6 +3,7 @@
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "firmware_app/tables/grid_align.hpp"
+#include "fixture_paths.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -223,8 +224,8 @@ TEST_F(EvalPlotTest, CsvReaderErrorsNameFileLineAndColumn) {
 }
 
 TEST_F(EvalPlotTest, GridAlignmentOfSharedFixture) {
-  const fs::path align = fs::path(LIPDRIVE_SHARED_FIXTURES) / "grid" / "bbaf2n.align";
-  if (!fs::exists(align)) GTEST_SKIP() << align << " is absent";
+  const fs::path align = test::shared_fixtures() / "grid" / "bbaf2n.align";
+  LIPDRIVE_SKIP_WITHOUT_SHARED(align);
   const auto words = read_grid_align(align);
   ASSERT_EQ(words.size(), 8u);  // sil bin blue at f two now sil
 

@@ -4,6 +4,7 @@
 #include "core/face_tracker.hpp"
 #include "core/shape_predictor.hpp"
 #include "firmware_app/cli/command_error.hpp"
+#include "fixture_paths.hpp"
 #include "shared_predictor.hpp"
 
 #include <dlib/image_processing.h>
@@ -25,7 +26,7 @@
 namespace lipdrive {
 namespace {
 
-const std::filesystem::path kGridDir = LIPDRIVE_SHARED_FIXTURES "/grid";
+const std::filesystem::path kGridDir = test::shared_fixtures() / "grid";
 const std::filesystem::path kFixtureDir = LIPDRIVE_FIXTURE_DIR;
 
 std::vector<cv::Mat> read_gray_frames(const std::filesystem::path& video) {
@@ -101,6 +102,7 @@ std::vector<dlib::rectangle> detect(const cv::Mat& gray) {
 }
 
 TEST(ShapePredictor, MatchesDlibOnGridFrames) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir / "bbaf2n.mpg");
   int compared = 0;
   for (const char* clip : {"bbaf2n", "lgaf4n"}) {
     const auto frames = grid_frames(clip);
@@ -115,12 +117,13 @@ TEST(ShapePredictor, MatchesDlibOnGridFrames) {
       ++compared;
     }
   }
-  if (compared == 0) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  EXPECT_GT(compared, 0) << "no frames read from the GRID clips in " << kGridDir;
 }
 
 TEST(ShapePredictor, MatchesDlibOnGeneratedFace) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();
-  if (face.empty()) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  ASSERT_FALSE(face.empty()) << "no frame in " << kFixtureDir / "talking_face.avi";
   // Also a rotated, smaller copy: the similarity transform then has a real rotation part.
   cv::Mat rotated;
   const cv::Mat turn = cv::getRotationMatrix2D(cv::Point2f(face.cols / 2.f, face.rows / 2.f), 12, 0.7);
@@ -174,8 +177,9 @@ TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
 }
 
 TEST(FaceTracker, AcquiresThenTracksAGridClip) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir / "bbaf2n.mpg");
   const auto frames = grid_frames("bbaf2n");
-  if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  ASSERT_FALSE(frames.empty()) << "no frames read from " << kGridDir / "bbaf2n.mpg";
   FaceTracker tracker(test::shared_predictor());
   ShapePredictor reference(test::shared_predictor());
   Landmarks2D tracked, detected;
@@ -195,7 +199,8 @@ TEST(FaceTracker, AcquiresThenTracksAGridClip) {
 TEST(FaceTracker, LosesTheFaceOnABlankFrameAndReacquires) {
   auto frames = grid_frames("bbaf2n");
   if (frames.empty()) frames.assign(4, generated_face());
-  if (frames.front().empty()) GTEST_SKIP() << "no face video or image";
+  if (frames.front().empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  ASSERT_FALSE(frames.front().empty()) << "no face in the GRID clip or the generated fixture";
   FaceTracker tracker(test::shared_predictor());
   Landmarks2D landmarks;
   EXPECT_EQ(tracker.track(frames[0], landmarks), TrackStatus::kAcquired);
@@ -209,8 +214,9 @@ TEST(FaceTracker, LosesTheFaceOnABlankFrameAndReacquires) {
 }
 
 TEST(FaceTracker, APoorFitDropsTheTrack) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();
-  if (face.empty()) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  ASSERT_FALSE(face.empty()) << "no frame in " << kFixtureDir / "talking_face.avi";
   FaceTracker tracker(test::shared_predictor());
   Landmarks2D landmarks;
   ASSERT_EQ(tracker.track(face, landmarks), TrackStatus::kAcquired);
@@ -223,8 +229,9 @@ TEST(FaceTracker, APoorFitDropsTheTrack) {
 }
 
 TEST(FaceTracker, ImplausibleLandmarksAreRejected) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();
-  if (face.empty()) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  ASSERT_FALSE(face.empty()) << "no frame in " << kFixtureDir / "talking_face.avi";
   FaceTracker tracker(test::shared_predictor());
   Landmarks2D landmarks;
   ASSERT_EQ(tracker.track(face, landmarks), TrackStatus::kAcquired);
@@ -242,7 +249,8 @@ TEST(FaceTracker, ImplausibleLandmarksAreRejected) {
 TEST(FaceTracker, SteadyStateTrackingAllocatesNothing) {
   auto frames = grid_frames("bbaf2n");
   if (frames.empty()) frames.assign(8, generated_face());
-  if (frames.front().empty()) GTEST_SKIP() << "no face video or image";
+  if (frames.front().empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  ASSERT_FALSE(frames.front().empty()) << "no face in the GRID clip or the generated fixture";
   FaceTracker tracker(test::shared_predictor());
   Landmarks2D landmarks;
   ASSERT_EQ(tracker.track(frames[0], landmarks), TrackStatus::kAcquired);

@@ -3,6 +3,7 @@
 #include "core/facial_indices.hpp"
 #include "core/one_euro_filter.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "fixture_paths.hpp"
 
 #include <gtest/gtest.h>
 
@@ -186,7 +187,7 @@ TEST(FacialIndices, WarnsOnlyWhenVerticalMouthHeightIsTwoClassesApart) {
 
 TEST(FacialIndices, DefaultModelNeutralPose) {
   const auto path = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not built (target default_models)";
+  LIPDRIVE_REQUIRE_BUILT(path);
   const FacialMeasures m = facial_measures(frontal_neutral_landmarks(load_model_file(path)));
   const MouthClasses classes = mouth_classes(m);
   for (int i = 0; i < kNumFacialIndices; ++i) {

@@ -1,6 +1,7 @@
 #include "core/fitting.hpp"
 #include "core/mouth_measures.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "fixture_paths.hpp"
 #include "reference_fitter.hpp"
 
 #include <gtest/gtest.h>
@@ -171,7 +172,7 @@ TEST(Fitter, RejectsBadSettings) {
 // the outer eye corners, default settings, cold start, over every pose of the model.
 TEST(Fitter, MouthMeasuresOfTheDefaultModelUnderNoise) {
   const std::filesystem::path path = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "default model " << path << " not built (target default_models)";
+  LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
   const Fitter fitter(model, kDefaultLandmarkSet);
   const Eigen::Matrix<double, 3, kNumLandmarks> neutral = model_landmarks(model, Eigen::VectorXd::Zero(1));

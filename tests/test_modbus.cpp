@@ -316,14 +316,11 @@ class PipelineWithServer {
   PipelineWithServer()
       : pipeline_(
             std::make_unique<SimulatedCamera>(SimulatedCameraOptions{.input = kClip, .real_time = true, .loop = true}),
-            make_processor(), settings()),
-        output_(tcp_server_options(), kChannels, pipeline_.control()) {
+            make_processor(), settings(), control_),
+        output_(tcp_server_options(), kChannels, control_) {
     pipeline_.add_output(output_);
     pipeline_.start();
   }
-  // The output reads the pipeline's DriveControl: the pipeline stops first, the output goes
-  // next, the pipeline last.
-  ~PipelineWithServer() { pipeline_.stop(); }
 
   Pipeline& pipeline() { return pipeline_; }
   ModbusServerOutput& output() { return output_; }
@@ -343,15 +340,15 @@ class PipelineWithServer {
     return settings;
   }
 
+  // Each after what its threads use: destroyed in the safe order.
+  DriveControl control_;
   Pipeline pipeline_;
   ModbusServerOutput output_;
 };
 
 class ModbusPipelineTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
-  }
+  void SetUp() override { LIPDRIVE_REQUIRE_BUILT(kClip); }
 };
 
 TEST_F(ModbusPipelineTest, RegistersFollowTheMouthAndControlTheDrive) {

@@ -191,9 +191,7 @@ void wait_for(const std::function<bool()>& condition, std::chrono::seconds limit
 
 class PipelineTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
-  }
+  void SetUp() override { LIPDRIVE_REQUIRE_BUILT(kClip); }
 };
 
 TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
@@ -202,7 +200,8 @@ TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
   settings.channels = {
       ChannelSpec{.name = "open", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 100}};
   settings.safety.ease_ns = 100'000'000;
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings);
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings, control);
   RecordingOutput output;
   pipeline.add_output(output);
   pipeline.start();
@@ -239,7 +238,8 @@ class AllocationWatch : public ResultSink {
 };
 
 TEST_F(PipelineTest, ProcessingAllocatesNothingPerFrame) {
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{}, control);
   AllocationWatch watch;
   pipeline.add_sink(watch);
   const long before = test::allocation_count();
@@ -260,7 +260,8 @@ TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
   options.faults.reconnect = 400ms;
   PipelineSettings settings;
   settings.frame_wait = 20ms;
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings);
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
   RecordingOutput output;
   pipeline.add_output(output);
   pipeline.start();
@@ -313,7 +314,8 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   settings.channels = {ChannelSpec{
       .name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
   settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings);
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
   OutageWatch watch(1000);
   pipeline.add_output(watch);
   pipeline.start();
@@ -331,14 +333,15 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
 
 TEST_F(PipelineTest, SideCameraMeasuresProtrusionAndTheFrontCarriesOnWithoutIt) {
   const fs::path side_clip = fs::path(LIPDRIVE_FIXTURE_DIR) / "side_view.avi";
-  if (!fs::exists(side_clip)) GTEST_SKIP() << "no generated fixture " << side_clip;
+  LIPDRIVE_REQUIRE_BUILT(side_clip);
   SimulatedCameraOptions front = clip_options();
   front.real_time = true;
   SimulatedCameraOptions side = front;
   side.input = side_clip;
   side.faults.disconnect_after = 100;  // 4 s in, the side camera goes away for 1.5 s
   side.faults.reconnect = 1500ms;
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(front), make_processor(), PipelineSettings{});
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(front), make_processor(), PipelineSettings{}, control);
   // The reference is fixed on the side clip's first 10 frames: it starts at rest.
   pipeline.set_side_camera(
       std::make_unique<SideCamera>(std::make_unique<SimulatedCamera>(side), SideProfileSettings{}, 10));
@@ -374,7 +377,8 @@ TEST_F(PipelineTest, SideCameraMeasuresProtrusionAndTheFrontCarriesOnWithoutIt) 
 TEST_F(PipelineTest, ACalibrateRequestRecentresTheProfileOnTheProcessingThread) {
   PipelineSettings settings;
   settings.neutral_frames = 10;
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings);
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings, control);
   // A profile from someone else's face: its rest is far from what the clip's mouth shows.
   PerformerProfile before;
   before.rest = {0.6, 2.2, 0.3};
@@ -409,7 +413,8 @@ TEST_F(PipelineTest, ACalibrateRequestRecentresTheProfileOnTheProcessingThread) 
 }
 
 TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{});
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{}, control);
   TakeRecorder recorder("clip", 50ms);
   pipeline.set_recorder(recorder);
   RecordingOutput output;
@@ -434,7 +439,7 @@ TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
 class RunTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
+    LIPDRIVE_REQUIRE_BUILT(kClip);
     dir_ = fs::temp_directory_path() / fmt::format("lipdrive_test_run_{}_{}", ::getpid(),
                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);

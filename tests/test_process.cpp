@@ -2,6 +2,7 @@
 // closures on real GRID speech, and bad input that must fail cleanly.
 #include "core/metrics.hpp"
 #include "firmware_app/tables/csv_table.hpp"
+#include "fixture_paths.hpp"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -26,7 +27,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kGridDir = LIPDRIVE_SHARED_FIXTURES "/grid";
+const fs::path kGridDir = test::shared_fixtures() / "grid";
 const fs::path kFixtureDir = LIPDRIVE_FIXTURE_DIR;
 
 struct ProcessRun {
@@ -73,7 +74,8 @@ std::vector<double> scaled(std::vector<double> v) {
 
 TEST_F(ProcessTest, GeneratedTalkingFaceFollowsItsTruth) {
   const fs::path video = kFixtureDir / "talking_face.avi", truth_csv = kFixtureDir / "talking_face_truth.csv";
-  if (!fs::exists(video) || !fs::exists(truth_csv)) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  LIPDRIVE_REQUIRE_BUILT(video);
+  LIPDRIVE_REQUIRE_BUILT(truth_csv);
   const fs::path out = dir_ / "talking_face.csv";
   const ProcessRun run = run_process(video.string() + " --out " + out.string(), dir_);
   ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
@@ -105,7 +107,7 @@ std::string file_text(const fs::path& file) {
 // daemon's factory: the file's settings change the output exactly as they change the rig's.
 TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   const fs::path video = kFixtureDir / "talking_face.avi";
-  if (!fs::exists(video)) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  LIPDRIVE_REQUIRE_BUILT(video);
   const auto process_with = [&](const std::string& name, const std::string& model_table) {
     const fs::path config = dir_ / (name + ".toml"), out = dir_ / (name + ".csv");
     std::ofstream(config) << "[model]\n" << model_table;
@@ -133,7 +135,8 @@ TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
 TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {
   const fs::path front = kFixtureDir / "talking_face.avi", side = kFixtureDir / "side_view.avi",
                  truth_csv = kFixtureDir / "side_view_truth.csv";
-  if (!fs::exists(front) || !fs::exists(side)) GTEST_SKIP() << "no generated fixtures in " << kFixtureDir;
+  LIPDRIVE_REQUIRE_BUILT(front);
+  LIPDRIVE_REQUIRE_BUILT(side);
   const fs::path out = dir_ / "with_side.csv";
   const ProcessRun run =
       run_process(fmt::format("{} --side {} --out {}", front.string(), side.string(), out.string()), dir_);
@@ -154,7 +157,7 @@ TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {
 
 TEST_F(ProcessTest, GridSpeechClosesTheLipsOnBilabials) {
   const fs::path clip = kGridDir / "bbaf2n.mpg";
-  if (!fs::exists(clip)) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  LIPDRIVE_SKIP_WITHOUT_SHARED(clip);
   const fs::path out = dir_ / "bbaf2n.csv";
   const ProcessRun run = run_process(clip.string() + " --out " + out.string() + " --include-landmarks", dir_);
   ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
@@ -228,24 +231,9 @@ TEST_F(ProcessTest, VideoWithoutAFaceWritesUntrackedRowsAndFails) {
   EXPECT_TRUE(std::all_of(height.begin(), height.end(), [](double h) { return std::isnan(h); }));
 }
 
-// An AVI copy of a GRID clip: unlike MPEG program streams, AVI declares its frame count,
-// which is how a truncated recording is told from one that simply ends.
-fs::path grid_clip_as_avi(const fs::path& dir) {
-  cv::VideoCapture capture((kGridDir / "bbaf2n.mpg").string());
-  const fs::path avi = dir / "bbaf2n.avi";
-  cv::Mat frame;
-  cv::VideoWriter writer;
-  while (capture.read(frame)) {
-    if (!writer.isOpened()) writer.open(avi.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, frame.size());
-    writer.write(frame);
-  }
-  return writer.isOpened() ? avi : fs::path();
-}
-
 TEST_F(ProcessTest, DamagedVideoKeepsTheRowsBeforeTheDamage) {
-  fs::path source = kFixtureDir / "talking_face.avi";
-  if (!fs::exists(source) && fs::exists(kGridDir / "bbaf2n.mpg")) source = grid_clip_as_avi(dir_);
-  if (source.empty() || !fs::exists(source)) GTEST_SKIP() << "no video to damage";
+  const fs::path source = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(source);
   const fs::path damaged = dir_ / "damaged.avi";
   fs::copy_file(source, damaged);
   fs::resize_file(damaged, fs::file_size(source) / 2);

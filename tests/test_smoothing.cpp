@@ -5,6 +5,7 @@
 #include "core/metrics.hpp"
 #include "core/one_euro_filter.hpp"
 #include "firmware_app/tables/csv_table.hpp"
+#include "fixture_paths.hpp"
 
 #include <gtest/gtest.h>
 
@@ -24,7 +25,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kGridDir = LIPDRIVE_SHARED_FIXTURES "/grid";
+const fs::path kGridDir = test::shared_fixtures() / "grid";
 const fs::path kFixtureDir = LIPDRIVE_FIXTURE_DIR;
 
 // The settings config/lipdrive.toml ships for open, width and protrusion. The channels
@@ -99,7 +100,7 @@ class Smoothing : public ::testing::Test {
 };
 
 TEST_F(Smoothing, GridSilenceIsStillerAndBilabialClosuresKeepTheirDepth) {
-  if (!fs::exists(kGridDir)) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir);
   int clips = 0, closures = 0;
   for (const auto& entry : fs::directory_iterator(kGridDir)) {
     if (entry.path().extension() != ".mpg") continue;
@@ -133,12 +134,13 @@ TEST_F(Smoothing, GridSilenceIsStillerAndBilabialClosuresKeepTheirDepth) {
   }
   RecordProperty("clips", clips);
   RecordProperty("bilabial_closures", closures);
-  if (clips == 0) GTEST_SKIP() << "no .mpg with .align in " << kGridDir;
+  ASSERT_GT(clips, 0) << "no .mpg with .align in " << kGridDir;
 }
 
 TEST_F(Smoothing, GeneratedFaceKeepsItsArticulation) {
   const fs::path video = kFixtureDir / "talking_face.avi", truth_csv = kFixtureDir / "talking_face_truth.csv";
-  if (!fs::exists(video) || !fs::exists(truth_csv)) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  LIPDRIVE_REQUIRE_BUILT(video);
+  LIPDRIVE_REQUIRE_BUILT(truth_csv);
   const CsvTable output = process(video, dir_ / "talking_face.csv");
   const CsvTable truth = read_csv_table(truth_csv);
   ASSERT_EQ(output.rows.size(), truth.rows.size());

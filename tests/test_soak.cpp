@@ -39,7 +39,7 @@ long stat(const std::string& log, const std::string& label) {
 }
 
 TEST(Soak, AMinuteAt60FpsWithFaultsLeaksNothingAndNeverMissesTheWatchdog) {
-  if (!fs::exists(kClip)) GTEST_SKIP() << "no generated fixture " << kClip;
+  LIPDRIVE_REQUIRE_BUILT(kClip);
   const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_test_soak_{}", ::getpid());
   fs::create_directories(dir);
   const fs::path config = dir / "lipdrive.toml";

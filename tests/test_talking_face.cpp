@@ -1,3 +1,4 @@
+#include "fixture_paths.hpp"
 #include "sim/simulated_camera.hpp"
 #include "sim/talking_face.hpp"
 
@@ -166,7 +167,7 @@ TEST(TalkingFaceInput, RejectsAnEmptyPortraitOrDegenerateLandmarks) {
 
 TEST(TalkingFaceFixture, VideoHasOneFramePerTruthRow) {
   const fs::path dir = LIPDRIVE_FIXTURE_DIR;
-  if (!fs::exists(dir / "talking_face.avi")) GTEST_SKIP() << "no fixture in " << dir << " (build target fixtures)";
+  LIPDRIVE_REQUIRE_BUILT(dir / "talking_face.avi");
   std::ifstream truth(dir / "talking_face_truth.csv");
   std::string line;
   ASSERT_TRUE(std::getline(truth, line));

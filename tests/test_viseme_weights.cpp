@@ -3,6 +3,7 @@
 #include "allocation_counter.hpp"
 #include "core/viseme_weights.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "fixture_paths.hpp"
 #include "reference_fitter.hpp"
 
 #include <Eigen/SVD>
@@ -126,7 +127,7 @@ class DefaultModels : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(DefaultModels, FullPosesAreReproducedAndTheirSeparationIsReported) {
   const auto path = default_model_path(GetParam());
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not built (target default_models)";
+  LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
   const VisemeSolver solver(model);
   const Eigen::MatrixXd directions = viseme_directions(model);
@@ -306,7 +307,7 @@ constexpr double kRigEyeSpanPx = 225, kFarEyeSpanPx = 80;
 // can reach from these landmarks at this noise.
 TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
   const auto path = default_model_path("default.lpm");
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not built (target default_models)";
+  LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
   const VisemeSolver solver(model);
   const auto set = landmark_indices(kDefaultLandmarkSet);
@@ -338,7 +339,7 @@ TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
 
 TEST(VisemeSolver, PoseMatchAllocatesNothingAndGivesWeightsInRange) {
   const auto path = default_model_path("default.lpm");
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not built (target default_models)";
+  LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
   const VisemeSolver solver(model);
   const Fitter fitter(model, kDefaultLandmarkSet);

@@ -44,8 +44,10 @@ int run_daemon(RunOptions options) {
   options.daemon.watchdog_interval = watchdog_interval();
   Config config = load_config(options.config);
   spdlog::set_level(config.log_level);
-  auto processor = make_processor(config);
-  auto daemon = std::make_unique<Daemon>(std::move(config), std::move(processor), options.daemon);
+  // The predictor and the model, loaded once for the process and shared by every reload.
+  LoadedFiles files;
+  auto processor = make_processor(config, files);
+  auto daemon = std::make_unique<Daemon>(std::move(config), std::move(processor), options.daemon, files);
   sd_notify(0, "READY=1");
 
   auto next_status =
@@ -58,7 +60,7 @@ int run_daemon(RunOptions options) {
       spdlog::info("{}: stopping", strsignal(signal));
       break;
     }
-    if (signal == SIGHUP) reload(daemon, options.config, options.daemon);
+    if (signal == SIGHUP) reload(daemon, options.config, options.daemon, files);
     if (signal == SIGUSR1) daemon->request_calibration();
     daemon->poll();
     if (daemon->finished()) break;

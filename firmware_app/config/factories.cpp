@@ -4,8 +4,7 @@
 #ifdef LIPDRIVE_HAVE_LIBCAMERA
 #include "drivers/libcamera_camera.hpp"
 #endif
-#include "firmware_app/config/model_files.hpp"
-#include "firmware_app/config/predictor_file.hpp"
+#include "firmware_app/cli/command_error.hpp"
 #include "sim/simulated_camera.hpp"
 
 #include <fmt/format.h>
@@ -46,12 +45,14 @@ std::unique_ptr<SideCamera> make_side_camera(const Config& config) {
                                       config.performer.neutral_frames);
 }
 
-std::unique_ptr<FrameProcessor> make_processor(const Config::Model& model, const Config::Tracker& tracker) {
-  const MorphableModel loaded = load_model_file(model.file);
+std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles& files) {
+  const Config::Model& model = config.model;
+  const std::shared_ptr<const MorphableModel> loaded = files.model(model.file);
   FitSettings fit;
   fit.iterations = model.iterations;
   try {
-    return std::make_unique<FrameProcessor>(loaded, model.landmark_set, fit, load_predictor_file(tracker.predictor));
+    return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit,
+                                            files.predictor(config.tracker.predictor));
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }

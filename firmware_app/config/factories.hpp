@@ -5,6 +5,7 @@
 
 #include "drivers/frame_source.hpp"
 #include "firmware_app/config/config.hpp"
+#include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/daemon/side_camera.hpp"
 
@@ -18,11 +19,14 @@ std::unique_ptr<FrameSource> make_source(const Config& config);
 /// The [side_camera], or nullptr when it is not enabled.
 std::unique_ptr<SideCamera> make_side_camera(const Config& config);
 
-/// Model + predictor + tracker + fitter from [model] and [tracker]. Throws CommandError: a
-/// missing model or predictor (exit 66), one that is invalid or cannot be fitted (exit 65).
-std::unique_ptr<FrameProcessor> make_processor(const Config::Model& model, const Config::Tracker& tracker);
+/// Model + predictor + tracker + fitter from [model] and [tracker], the files from `files`
+/// (shared with earlier processors when unchanged). Throws CommandError: a missing model or
+/// predictor (exit 66), one that is invalid or cannot be fitted (exit 65).
+std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles& files);
+/// The same for a command that builds one processor.
 inline std::unique_ptr<FrameProcessor> make_processor(const Config& config) {
-  return make_processor(config.model, config.tracker);
+  LoadedFiles files;
+  return make_processor(config, files);
 }
 
 }  // namespace lipdrive

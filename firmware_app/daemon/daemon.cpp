@@ -1,7 +1,6 @@
 #include "firmware_app/daemon/daemon.hpp"
 
 #include "firmware_app/config/factories.hpp"
-#include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 #include "firmware_app/outputs/make_outputs.hpp"
 
@@ -25,9 +24,9 @@ PerformerProfile load_performer(const Config& config) {
 
 /// The performer's mouth and the model's are two vertical-mouth-height classes apart
 /// (docs/method.md 6): logged, and reported in the status word.
-bool model_mismatch(const Config& config, const PerformerProfile& profile) {
+bool model_mismatch(const Config& config, const PerformerProfile& profile, LoadedFiles& files) {
   if (!profile.face_indices) return false;
-  const Compatibility check = model_compatibility(profile, load_model_file(config.model.file));
+  const Compatibility check = model_compatibility(profile, *files.model(config.model.file));
   if (check.warn)
     spdlog::warn(
         "performer {}: vertical mouth height is {}, the model's {}: expect clearly worse lips (docs/method.md 6)",
@@ -38,7 +37,8 @@ bool model_mismatch(const Config& config, const PerformerProfile& profile) {
 
 }  // namespace
 
-Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options)
+Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options,
+               LoadedFiles& files)
     : config_(std::move(config)), profile_(load_performer(config_)) {
   PipelineSettings settings;
   settings.max_frames = options.max_frames;
@@ -46,18 +46,18 @@ Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const D
   settings.channels = config_.channels;
   settings.safety = config_.safety;
   settings.neutral_frames = config_.performer.neutral_frames;
-  settings.model_mismatch = model_mismatch(config_, profile_);
+  settings.model_mismatch = model_mismatch(config_, profile_, files);
   std::unique_ptr<FrameSource> source = make_source(config_);
   recorder_ = std::make_unique<TakeRecorder>(source->describe(),
                                              std::chrono::milliseconds(config_.recording.flush_interval_ms));
-  pipeline_ = std::make_unique<Pipeline>(std::move(source), std::move(processor), settings);
+  pipeline_ = std::make_unique<Pipeline>(std::move(source), std::move(processor), settings, control_);
   if (auto side = make_side_camera(config_)) {
     spdlog::info("side camera: {}", side->describe());
     pipeline_->set_side_camera(std::move(side));
   }
   pipeline_->set_recorder(*recorder_);
   pipeline_->set_profile(profile_);
-  outputs_ = make_outputs(config_, pipeline_->control());
+  outputs_ = make_outputs(config_, control_);
   for (const auto& output : outputs_) {
     pipeline_->add_output(*output);
     spdlog::info("output: {}", output->describe());
@@ -68,16 +68,8 @@ Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const D
                landmark_set_name(config_.model.landmark_set));
 }
 
-Daemon::~Daemon() {
-  // The outputs' threads write the pipeline's DriveControl: the pipeline stops first, the
-  // outputs go next, the pipeline last.
-  pipeline_->stop();
-  outputs_.clear();
-}
-
 void Daemon::poll() {
-  DriveControl& control = pipeline_->control();
-  const int record = control.recording_request.exchange(-1, std::memory_order_relaxed);
+  const int record = control_.recording_request.exchange(-1, std::memory_order_relaxed);
   if (record == 1 && !recorder_->recording()) {
     recorder_->start(take_file_name(config_.recording.dir));
   } else if (record == 0 && recorder_->recording()) {
@@ -144,13 +136,14 @@ void Daemon::print_stats() const {
              s.seconds > 0 ? static_cast<double>(s.processed) / s.seconds : 0.0, s.processed, s.seconds);
 }
 
-void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options) {
+void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options,
+            LoadedFiles& files) {
   sd_notify(0, "RELOADING=1");
   Config config;
   std::unique_ptr<FrameProcessor> processor;
   try {
     config = load_config(file);
-    processor = make_processor(config);
+    processor = make_processor(config, files);
   } catch (const std::exception& e) {
     spdlog::error("reload failed, keeping the running configuration: {}", e.what());
     sd_notify(0, "READY=1");
@@ -161,11 +154,11 @@ void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, 
   daemon.reset();
   try {
     spdlog::set_level(config.log_level);
-    daemon = std::make_unique<Daemon>(std::move(config), std::move(processor), options);
+    daemon = std::make_unique<Daemon>(std::move(config), std::move(processor), options, files);
   } catch (const std::exception& e) {
     spdlog::error("the new configuration does not start, going back to the previous one: {}", e.what());
     spdlog::set_level(previous.log_level);
-    daemon = std::make_unique<Daemon>(previous, make_processor(previous), options);
+    daemon = std::make_unique<Daemon>(previous, make_processor(previous, files), options, files);
   }
   sd_notify(0, "READY=1");
 }

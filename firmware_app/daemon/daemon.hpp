@@ -2,11 +2,15 @@
 // its cameras, the outputs, the take recorder, the performer's profile), built and started
 // together, replaced as a whole when the configuration is reloaded.
 //
-// Thread model: the main thread makes every call. Objects are declared in the order they are
-// needed, and the destructor stops the pipeline's threads before anything they use goes.
+// Thread model: the main thread makes every call. Every part is declared after what its
+// threads use, so the members' own destruction order is the safe one: the pipeline's threads
+// are joined first (they use the outputs, the recorder and the drive control), then the outputs
+// and their threads go (the Modbus server writes the drive control), the recorder, and the
+// drive control last. A constructor that throws half-way unwinds in the same order.
 #pragma once
 
 #include "firmware_app/config/config.hpp"
+#include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
@@ -31,8 +35,8 @@ class Daemon {
  public:
   /// Builds everything `config` describes around `processor` and starts it. Throws
   /// ConfigError or CommandError when something cannot be opened or loaded.
-  Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options);
-  ~Daemon();
+  /// `files` holds the model the performer's profile is checked against (it outlives the daemon).
+  Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options, LoadedFiles& files);
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
 
@@ -41,7 +45,7 @@ class Daemon {
   void poll();
   /// SIGUSR1: re-capture the performer's neutral pose, like the GPIO button and the Modbus
   /// calibrate register.
-  void request_calibration() { pipeline_->control().calibrate_requests.fetch_add(1); }
+  void request_calibration() { control_.calibrate_requests.fetch_add(1); }
   /// The status line: on the log and to systemd (STATUS=).
   void report_status();
   /// --stats: frame counts and latencies on stderr.
@@ -56,9 +60,10 @@ class Daemon {
  private:
   Config config_;
   PerformerProfile profile_;
+  DriveControl control_;  // written by the Modbus server's thread and the GPIO buttons, read by the pipeline
   std::unique_ptr<TakeRecorder> recorder_;
-  std::vector<std::unique_ptr<Output>> outputs_;
-  std::unique_ptr<Pipeline> pipeline_;  // its threads use the recorder and the outputs
+  std::vector<std::unique_ptr<Output>> outputs_;  // their threads use control_
+  std::unique_ptr<Pipeline> pipeline_;            // its threads use all of the above
   std::uint32_t saved_profile_version_ = 0;
   // The status line: fps over the last interval.
   double last_status_seconds_ = 0;
@@ -67,7 +72,10 @@ class Daemon {
 
 /// SIGHUP: a new daemon from the re-read file. The running one stays when the file, the model
 /// or the predictor is wrong; the camera can only be opened once the old pipeline has let go
-/// of it, so if the new one does not start, the previous configuration is started again.
-void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options);
+/// of it, so if the new one does not start, the previous configuration is started again. The
+/// new processor is built while the old pipeline still runs (and feeds the watchdog), from
+/// `files`: a model or predictor whose file did not change is shared, not read again.
+void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options,
+            LoadedFiles& files);
 
 }  // namespace lipdrive

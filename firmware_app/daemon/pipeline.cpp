@@ -21,11 +21,12 @@ std::int64_t frame_period_ns(double fps) { return static_cast<std::int64_t>(1e9 
 }  // namespace
 
 Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor,
-                   PipelineSettings settings)
+                   PipelineSettings settings, DriveControl& control)
     : capture_(std::move(source), "", "the drive holds, then eases to neutral"),
       processor_(std::move(processor)),
       half_period_ns_(frame_period_ns(capture_.frame_rate()) / 2),
       settings_(std::move(settings)),
+      control_(control),
       channels_(settings_.channels, settings_.safety),
       // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
       max_result_age_ns_(3 * frame_period_ns(capture_.frame_rate())) {}

@@ -67,7 +67,10 @@ struct PipelineStats {
 
 class Pipeline {
  public:
-  Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor, PipelineSettings settings);
+  /// `control` carries the commands of the outputs and of the daemon to the drive: it is the
+  /// owner's, and outlives the pipeline and every output that writes it.
+  Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameProcessor> processor, PipelineSettings settings,
+           DriveControl& control);
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
@@ -133,7 +136,7 @@ class Pipeline {
   Published<FrameResult> results_;
   Published<DriveFrame> drive_frames_;
   Published<PerformerProfile> recentred_;
-  DriveControl control_;
+  DriveControl& control_;
   std::atomic<bool> calibrated_{false};  // the profile in use is the performer's (status word)
 
   // Processing thread's.

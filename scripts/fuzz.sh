@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# libFuzzer campaigns on the parsers of outside input (tests/fuzz/):
+#   ./scripts/fuzz.sh [TARGET|all] [SECONDS]     default: all, 60 s each, one after the other
+# Builds the targets in the ASan lane's build-asan/ (clang, ASan + UBSan + coverage, see
+# scripts/sanitize.sh), then runs each from its seed corpus (tests/fuzz/TARGET/) plus what
+# earlier runs found (build-asan/fuzz-corpus/TARGET/). A crash, a sanitizer report, a
+# timeout (10 s per input) or an input that needs more than 2 GiB is written to
+# build-asan/fuzz-findings/TARGET/ and fails the run; libFuzzer's final statistics go to
+# build-asan/fuzz-logs/TARGET.log, and one summary line per target to stdout.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+which=${1:-all}
+seconds=${2:-60}
+
+./scripts/sanitize.sh build asan fuzz_targets
+
+# The targets: every lipdrive_fuzz_target() line of tests/fuzz/CMakeLists.txt.
+mapfile -t all < <(sed -n 's/^lipdrive_fuzz_target(\([a-z0-9_]*\).*/\1/p' tests/fuzz/CMakeLists.txt)
+if [ "$which" = all ]; then targets=("${all[@]}"); else targets=("$which"); fi
+
+export ASAN_OPTIONS="detect_leaks=1:allocator_may_return_null=0"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+failed=0
+for target in "${targets[@]}"; do
+  binary=build-asan/fuzz/fuzz_$target
+  [ -x "$binary" ] || { echo "fuzz: no target $target (targets: ${all[*]})" >&2; exit 2; }
+  corpus=build-asan/fuzz-corpus/$target findings=build-asan/fuzz-findings/$target
+  log=build-asan/fuzz-logs/$target.log
+  mkdir -p "$corpus" "$findings" build-asan/fuzz-logs
+  status=0
+  "$binary" "$corpus" "tests/fuzz/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+    -max_len=65536 -print_final_stats=1 -artifact_prefix="$findings/" >"$log" 2>&1 || status=$?
+  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  echo "fuzz_$target: ${seconds} s, ${execs:-?} executions, cov ${cov:-?}, ft ${ft:-?}, exit $status"
+  if [ "$status" -ne 0 ]; then
+    failed=1
+    echo "fuzz_$target: FINDING, see $log and $findings/:" >&2
+    grep -E 'ERROR|SUMMARY|==[0-9]+==|Test unit written' "$log" | head -20 >&2 || true
+  fi
+done
+exit $failed

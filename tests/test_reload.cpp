@@ -1,0 +1,248 @@
+// Reloading and stopping the daemon: the model and the predictor are read once and shared,
+// a Modbus server polled flat out from several clients while the daemon is reloaded and
+// stopped never reaches freed memory (the sanitizer lane runs this under AddressSanitizer),
+// and the systemd watchdog keeps being fed through reloads.
+#include "daemon_process.hpp"
+#include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/factories.hpp"
+#include "firmware_app/config/loaded_files.hpp"
+#include "fixture_paths.hpp"
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <modbus/modbus-tcp.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <algorithm>
+#include <atomic>
+#include <fstream>
+#include <thread>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+const fs::path kPredictor = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
+
+/// How often `text` occurs in `log`.
+int count(const std::string& log, const std::string& text) {
+  int n = 0;
+  for (auto at = log.find(text); at != std::string::npos; at = log.find(text, at + text.size())) ++n;
+  return n;
+}
+
+class ReloadTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / fmt::format("lipdrive_test_reload_{}_{}", ::getpid(),
+                                                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  fs::path dir_;
+};
+
+TEST_F(ReloadTest, AnUnchangedFileIsSharedAndAChangedOneReadAgain) {
+  LoadedFiles files;
+  const auto first = files.model(test::kModel);
+  EXPECT_EQ(files.model(test::kModel), first) << "same file: the loaded model";
+  EXPECT_EQ(files.reads(), 1);
+
+  // The same bytes under another name, then rewritten in place: both are read.
+  const fs::path copy = dir_ / "copy.lpm";
+  fs::copy_file(test::kModel, copy);
+  const auto copied = files.model(copy);
+  EXPECT_NE(copied, first);
+  EXPECT_EQ(files.reads(), 2);
+  fs::last_write_time(copy, fs::last_write_time(copy) + 1s);
+  EXPECT_NE(files.model(copy), copied) << "a rewritten file is read again";
+  EXPECT_EQ(files.reads(), 3);
+
+  // A file that went away is an error naming it, not the copy still in memory.
+  fs::remove(copy);
+  EXPECT_THROW(files.model(copy), CommandError);
+}
+
+TEST_F(ReloadTest, ProcessorsOfTheSameConfigurationShareTheirFiles) {
+  Config config;
+  config.model.file = test::kModel;
+  config.tracker.predictor = kPredictor;
+  LoadedFiles files;
+  const auto first = make_processor(config, files);
+  const auto second = make_processor(config, files);
+  EXPECT_EQ(files.reads(), 2) << "the model and the predictor once each";
+}
+
+/// A TCP port nothing listens on right now.
+int free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
+  socklen_t size = sizeof address;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
+  ::close(fd);
+  return ntohs(address.sin_port);
+}
+
+/// Modbus TCP masters reading the first registers as fast as the server answers, connecting
+/// again whenever the server goes away (as it does on every reload).
+class PollingClients {
+ public:
+  PollingClients(int clients, int port) {
+    for (int i = 0; i < clients; ++i)
+      threads_.emplace_back([this, port] {
+        while (!stop_) {
+          modbus_t* master = modbus_new_tcp("127.0.0.1", port);
+          modbus_set_response_timeout(master, 0, 200'000);
+          if (modbus_connect(master) == 0) {
+            std::uint16_t registers[8];
+            while (!stop_ && modbus_read_input_registers(master, 0, 8, registers) == 8) ++reads_;
+            // Holding registers too: the control registers the server reads from DriveControl.
+            if (!stop_ && modbus_read_registers(master, 0, 3, registers) == 3) ++reads_;
+          }
+          modbus_close(master);
+          modbus_free(master);
+          std::this_thread::sleep_for(1ms);
+        }
+      });
+  }
+  ~PollingClients() { stop(); }
+  void stop() {
+    stop_ = true;
+    for (auto& thread : threads_)
+      if (thread.joinable()) thread.join();
+  }
+  std::uint64_t reads() const { return reads_; }
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::atomic<std::uint64_t> reads_{0};
+  std::vector<std::thread> threads_;
+};
+
+TEST_F(ReloadTest, ModbusPolledFlatOutThroughReloadsAndStop) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  const int port = free_port();
+  const fs::path config = dir_ / "lipdrive.toml";
+  std::ofstream(config) << test::sim_camera_at_60_fps()
+                        << fmt::format(R"([[channels]]
+name = "open"
+signal = "open"
+[[outputs.modbus_server]]
+transport = "tcp"
+address = "127.0.0.1"
+port = {}
+)",
+                                       port);
+  test::DaemonProcess daemon(config, dir_ / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:", 120s)) << daemon.log();
+
+  PollingClients clients(4, port);
+  constexpr int kReloads = 12;
+  std::uint64_t reads_before = clients.reads();
+  int polled_between = 0;  // reloads after which the clients were served again
+  for (int reload = 1; reload <= kReloads; ++reload) {
+    daemon.signal(SIGHUP);
+    const auto deadline = Clock::now() + 60s;
+    while (count(daemon.log(), "running:") < reload + 1 && Clock::now() < deadline && daemon.running())
+      std::this_thread::sleep_for(5ms);
+    ASSERT_TRUE(daemon.running()) << daemon.log();
+    ASSERT_EQ(count(daemon.log(), "running:"), reload + 1) << "reload " << reload << "\n" << daemon.log();
+    std::this_thread::sleep_for(150ms);
+    polled_between += clients.reads() > reads_before;
+    reads_before = clients.reads();
+  }
+  // Stopping while the clients still poll.
+  daemon.signal(SIGTERM);
+  const int exit_code = daemon.wait(10s);
+  clients.stop();
+  const std::string log = daemon.log();
+  EXPECT_EQ(exit_code, 0) << log;
+  EXPECT_THAT(log, Not(HasSubstr("Sanitizer"))) << log;
+  EXPECT_EQ(polled_between, kReloads) << "the clients were served after every reload";
+  EXPECT_GT(clients.reads(), 1000u);
+  RecordProperty("modbus_reads", static_cast<int>(clients.reads()));
+  std::printf("%d reloads and a stop under 4 clients polling: %llu reads answered\n", kReloads,
+              static_cast<unsigned long long>(clients.reads()));
+}
+
+TEST_F(ReloadTest, TheWatchdogIsFedThroughReloads) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  // The unit's WatchdogSec=2; the daemon pings at a quarter of it.
+  constexpr auto kWatchdog = 2000ms;
+  // A second name for the predictor: a reload to it reads the file again.
+  const fs::path other_predictor = dir_ / "other_predictor.dat";
+  fs::create_symlink(kPredictor, other_predictor);
+  const fs::path config = dir_ / "lipdrive.toml";
+  const auto write_config = [&](const fs::path& predictor) {
+    std::ofstream(config) << test::sim_camera_at_60_fps()
+                          << fmt::format(
+                                 "[tracker]\npredictor = \"{}\"\n[[channels]]\nname = \"open\"\nsignal = \"open\"\n",
+                                 predictor.string());
+  };
+  write_config(kPredictor);
+  test::NotifySocket notify(dir_ / "notify.sock");
+  test::DaemonProcess daemon(
+      config, dir_ / "stderr.txt", "",
+      {notify.environment(), fmt::format("WATCHDOG_USEC={}", std::chrono::microseconds(kWatchdog).count())});
+  ASSERT_TRUE(daemon.wait_for_log("running:", 120s)) << daemon.log();
+
+  // Four reloads of the same file, then one to another predictor file, 1 s apart.
+  constexpr int kReloads = 5;
+  Clock::time_point last_ping{}, next_reload = Clock::now() + 1s;
+  std::chrono::milliseconds worst_gap{0};
+  int pings = 0, reloads = 0;
+  const auto end = [&] { return reloads == kReloads && count(daemon.log(), "running:") == kReloads + 1; };
+  // Each reload builds a processor (face detector, fitter, viseme poses) and the last reads
+  // the 95 MB predictor: seconds each on a loaded machine.
+  const auto deadline = Clock::now() + 300s;
+  Clock::time_point finished{};
+  while (Clock::now() < deadline && (finished == Clock::time_point{} || Clock::now() < finished + 1s)) {
+    const std::string message = notify.receive(10ms);
+    if (message.find("WATCHDOG=1") != std::string::npos) {
+      const auto now = Clock::now();
+      if (pings++ > 0)
+        worst_gap = std::max(worst_gap, std::chrono::duration_cast<std::chrono::milliseconds>(now - last_ping));
+      last_ping = now;
+    }
+    if (reloads < kReloads && Clock::now() >= next_reload && count(daemon.log(), "running:") == reloads + 1) {
+      if (reloads == kReloads - 1) write_config(other_predictor);
+      daemon.signal(SIGHUP);
+      ++reloads;
+      next_reload = Clock::now() + 1s;
+    }
+    if (finished == Clock::time_point{} && end()) finished = Clock::now();
+    ASSERT_TRUE(daemon.running()) << daemon.log();
+  }
+  ASSERT_TRUE(end()) << daemon.log();
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(5s), 0) << daemon.log();
+  const std::string log = daemon.log();
+  EXPECT_EQ(count(log, "reloaded; restarting the pipeline"), kReloads) << log;
+
+  RecordProperty("watchdog_pings", pings);
+  RecordProperty("worst_watchdog_gap_ms", static_cast<int>(worst_gap.count()));
+  std::printf(
+      "%d reloads (the last to another predictor file): %d watchdog pings, longest gap %lld ms (timeout %lld ms)\n",
+      kReloads, pings, static_cast<long long>(worst_gap.count()), static_cast<long long>(kWatchdog.count()));
+  EXPECT_GT(pings, 2 * kReloads);
+  EXPECT_LT(worst_gap, kWatchdog) << "systemd would have killed the daemon during a reload";
+}
+
+}  // namespace
+}  // namespace lipdrive
