@@ -47,29 +47,59 @@ FaceTracker::~FaceTracker() = default;
 FaceTracker::FaceTracker(FaceTracker&&) noexcept = default;
 FaceTracker& FaceTracker::operator=(FaceTracker&&) noexcept = default;
 
-bool FaceTracker::detect(const cv::Mat& gray) {
-  const std::vector<dlib::rectangle> faces = detector_->hog(dlib::cv_image<unsigned char>(gray));
-  if (faces.empty()) return false;
-  // One performer per camera: the largest face is theirs.
-  const auto largest =
-      std::max_element(faces.begin(), faces.end(), [](const auto& a, const auto& b) { return a.area() < b.area(); });
-  box_ = FaceBox{largest->left(), largest->top(), largest->right(), largest->bottom()};
-  return true;
+bool FaceTracker::acquire(const cv::Mat& gray, Landmarks2D& landmarks) {
+  std::vector<dlib::rectangle> faces = detector_->hog(dlib::cv_image<unsigned char>(gray));
+  // One performer per camera: the largest face is theirs, unless its landmarks fail the
+  // checks (a face cut by the image border); then the next largest.
+  std::sort(faces.begin(), faces.end(), [](const auto& a, const auto& b) { return a.area() > b.area(); });
+  for (const dlib::rectangle& face : faces) {
+    box_ = FaceBox{face.left(), face.top(), face.right(), face.bottom()};
+    predictor_.predict(gray, box_, landmarks);
+    if (accept(gray, landmarks, true)) return true;
+  }
+  return false;
 }
 
-bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks) {
-  return predictor_.feature_contrast() >= settings_.min_feature_contrast &&
-         plausible_face(landmarks, gray.cols, gray.rows, settings_.min_interocular_px);
+bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring) {
+  if (predictor_.feature_contrast() < settings_.min_feature_contrast ||
+      !plausible_face(landmarks, gray.cols, gray.rows, settings_.min_interocular_px))
+    return false;
+  // The detector found this face: its look is the reference for the frames tracked after it.
+  // A face too near the image border for the template is taken once it has moved in.
+  if (acquiring || !face_.captured()) {
+    face_.capture(gray, landmarks);
+    appearance_ = 1;
+    face_luma_ = face_.luma();
+    mouth_ratio_ = 0;
+    return true;
+  }
+  const FaceAppearance::Match match = face_.compare(gray, landmarks);
+  appearance_ = match.similarity;
+  face_luma_ = match.luma;
+  return appearance_ >= settings_.min_appearance;
 }
 
 TrackStatus FaceTracker::track(const cv::Mat& gray, Landmarks2D& landmarks) {
-  const bool acquiring = !tracking_;
-  if (acquiring && !detect(gray)) return TrackStatus::kNoFace;
-  predictor_.predict(gray, box_, landmarks);
-  tracking_ = accept(gray, landmarks);
-  if (!tracking_) return TrackStatus::kNoFace;
+  if (tracking_) {
+    predictor_.predict(gray, box_, landmarks);
+    tracking_ = accept(gray, landmarks, false);
+    // Not the face any more: look for it afresh in this same frame.
+  }
+  const bool acquired = !tracking_ && acquire(gray, landmarks);
+  if (!tracking_ && !acquired) return TrackStatus::kNoFace;
+  tracking_ = true;
   box_ = predictor_.data()->box_for(landmarks);  // where the face will be in the next frame
-  return acquiring ? TrackStatus::kAcquired : TrackStatus::kTracking;
+  return acquired ? TrackStatus::kAcquired : TrackStatus::kTracking;
+}
+
+bool FaceTracker::check_mouth(double lip_luma) {
+  if (!tracking_ || !(face_luma_ > 0) || !(lip_luma > 0)) return tracking_;
+  const double ratio = lip_luma / face_luma_;
+  if (mouth_ratio_ == 0) mouth_ratio_ = ratio;
+  const double change = ratio > mouth_ratio_ ? ratio / mouth_ratio_ : mouth_ratio_ / ratio;
+  if (ratio < settings_.min_mouth_luma || ratio > settings_.max_mouth_luma || change > settings_.max_mouth_luma_change)
+    tracking_ = false;
+  return tracking_;
 }
 
 bool FaceTracker::check_fit(const Landmarks2D& landmarks, double reprojection_error_px) {

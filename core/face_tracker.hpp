@@ -5,16 +5,24 @@
 // comes from the previous frame's landmarks (the camera moves with the head, so the face
 // stays in place) and only the shape predictor runs, which allocates nothing.
 //
-// The track is dropped, and the next frame re-detects, when the landmarks are implausible
-// (outside the image, a degenerate face size or aspect, eyes/nose/mouth out of order), when
-// the predictor's feature pixels have no contrast (a blank or covered frame), or when the
-// caller's 3DMM fit cannot explain them (check_fit).
+// Every tracked frame is validated as the face that was acquired; the predictor returns 68
+// points wherever its box is, so after a cut, a face leaving the frame or a hand over the
+// lens it would follow whatever is there. The track is dropped when the landmarks are
+// implausible (outside the image, a degenerate face size or aspect, eyes/nose/mouth out of
+// order), when the predictor's feature pixels have no contrast (a blank or covered frame),
+// when the upper face around them no longer looks like the one the detector acquired
+// (core/face_check.hpp: normalised correlation of a luma grid, a few microseconds), when the
+// caller's 3DMM fit cannot explain them (check_fit), or when the lips turn much darker or
+// brighter than the face (check_mouth: something over the mouth). A frame that fails the
+// first three runs the detector at once, so a cut to a face elsewhere loses no frame; after
+// the last two the next frame does.
 //
 // Licence: the Debian predictor /usr/share/dlib/shape_predictor_68_face_landmarks.dat is
 // trained on the iBUG 300-W data set, whose licence excludes commercial use; a product
 // must ship a predictor trained on data it may use (any 68-point dlib .dat drops in).
 #pragma once
 
+#include "core/face_check.hpp"
 #include "core/landmarks.hpp"
 #include "core/shape_predictor.hpp"
 
@@ -32,6 +40,15 @@ struct TrackerSettings {
   double min_feature_contrast = 3.0;
   /// Smallest inter-ocular distance in pixels the predictor is trusted at.
   double min_interocular_px = 12.0;
+  /// Below this normalised correlation with the upper face seen at acquisition
+  /// (FaceAppearance) the landmarks are no longer on that face.
+  double min_appearance = 0.5;
+  /// The lips' luma over the upper face's (FaceAppearance::luma) lies in this range on every
+  /// face seen so far (0.54..1.45 over the 58 LFPW photographs, 0.71..0.86 over the GRID
+  /// clips) and may change by at most max_mouth_luma_change from the first frame of a track
+  /// (either way): anything else is a hand or an object over the mouth.
+  double min_mouth_luma = 0.4, max_mouth_luma = 2.0;
+  double max_mouth_luma_change = 1.5;
 };
 
 enum class TrackStatus {
@@ -53,8 +70,9 @@ class FaceTracker {
   FaceTracker(FaceTracker&&) noexcept;
   FaceTracker& operator=(FaceTracker&&) noexcept;
 
-  /// Landmarks of the face in the luma image `gray` (CV_8UC1). When the result is
-  /// kNoFace, `landmarks` is unspecified and the next call runs the detector.
+  /// Landmarks of the face in the luma image `gray` (CV_8UC1). A tracked face whose new
+  /// landmarks fail the checks is looked for afresh by the detector in the same frame. When
+  /// the result is kNoFace, `landmarks` is unspecified and the next call runs the detector.
   TrackStatus track(const cv::Mat& gray, Landmarks2D& landmarks);
 
   /// Feeds back the 3DMM fit of the landmarks track() returned: a fit error above
@@ -62,16 +80,29 @@ class FaceTracker {
   bool check_fit(const Landmarks2D& landmarks, double reprojection_error_px);
 
   bool tracking() const { return tracking_; }
+  /// Drops the track: the next frame runs the detector (an unrelated image follows).
+  void reset() { tracking_ = false; }
+  /// Feeds back the lips' luma the caller measured on the landmarks track() returned
+  /// (LipGap::lip_luma): a mouth much darker or brighter, relative to the upper face, than at
+  /// the start of the track drops it. Returns whether the frame is accepted.
+  bool check_mouth(double lip_luma);
+
+  /// FaceAppearance similarity of the last tracked frame (1 on acquisition).
+  double appearance() const { return appearance_; }
 
  private:
   struct Detector;  // dlib's frontal_face_detector, kept out of this header
-  bool detect(const cv::Mat& gray);
-  bool accept(const cv::Mat& gray, const Landmarks2D& landmarks);
+  bool acquire(const cv::Mat& gray, Landmarks2D& landmarks);
+  bool accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring);
 
   TrackerSettings settings_;
   ShapePredictor predictor_;
   std::unique_ptr<Detector> detector_;
-  FaceBox box_;  // where the next tracked frame looks: derived from the last landmarks
+  FaceAppearance face_;
+  double appearance_ = 0;
+  double face_luma_ = 0;    // this frame's upper-face luma
+  double mouth_ratio_ = 0;  // lips over upper face at the start of the track; 0 = not yet seen
+  FaceBox box_;             // where the next tracked frame looks: derived from the last landmarks
   bool tracking_ = false;
 };
 

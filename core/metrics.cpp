@@ -1,6 +1,9 @@
 #include "core/metrics.hpp"
 
+#include "core/statistics.hpp"
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -91,6 +94,57 @@ SeriesAgreement compare_series(std::span<const double> truth, std::span<const do
                          : kNaN;
   result.std_ratio = truth_square > 0 ? std::sqrt(output_square / truth_square) : kNaN;
   return result;
+}
+
+bool is_bilabial_word(std::string_view word) {
+  constexpr std::array<std::string_view, 8> kWords{"bin", "blue", "by", "place", "please", "b", "p", "m"};
+  return std::find(kWords.begin(), kWords.end(), word) != kWords.end();
+}
+
+ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words) {
+  const int n = static_cast<int>(values.size());
+  // Min-max scaled over the tracked frames; untracked frames stay NaN.
+  double lowest = std::numeric_limits<double>::infinity(), highest = -lowest;
+  for (double v : values)
+    if (std::isfinite(v)) lowest = std::min(lowest, v), highest = std::max(highest, v);
+  std::vector<double> scaled(values.size(), kNaN);
+  for (int f = 0; f < n; ++f)
+    if (std::isfinite(values[f])) scaled[f] = highest > lowest ? (values[f] - lowest) / (highest - lowest) : 0.0;
+
+  ClosureMetric m;
+  std::vector<double> speech;
+  for (const WordFrames& w : words) {
+    if (!w.silence)
+      for (int f = std::max(w.first, 0); f <= std::min(w.last, n - 1); ++f)
+        if (!std::isnan(scaled[f])) speech.push_back(scaled[f]);
+    if (!is_bilabial_word(w.word)) continue;
+    WordClosure closure{std::string(w.word), w.first, w.last, kNaN, false};
+    for (int f = std::max(w.first - ClosureMetric::kWidening, 0); f <= std::min(w.last + ClosureMetric::kWidening, n - 1);
+         ++f)
+      if (!std::isnan(scaled[f])) closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
+    closure.closed = closure.minimum <= ClosureMetric::kClosureLevel;
+    ++m.bilabial_words;
+    m.closures_seen += closure.closed;
+    m.words.push_back(std::move(closure));
+  }
+  m.opening = quantile(speech, 0.9);
+
+  m.silence_median = m.silence_jitter = kNaN;
+  const auto last_silence = std::find_if(words.rbegin(), words.rend(), [](const WordFrames& w) { return w.silence; });
+  if (last_silence == words.rend()) return m;
+  std::vector<double> silence;
+  double steps = 0;
+  int step_count = 0;
+  const int first = std::max(last_silence->first + ClosureMetric::kSilenceDelay, 0);
+  const int last = std::min(last_silence->last, n - 1);
+  for (int f = first; f <= last; ++f) {
+    if (std::isnan(scaled[f])) continue;
+    silence.push_back(scaled[f]);
+    if (f > first && !std::isnan(scaled[f - 1])) steps += std::abs(scaled[f] - scaled[f - 1]), ++step_count;
+  }
+  m.silence_median = median(silence);
+  if (step_count > 0) m.silence_jitter = steps / step_count;
+  return m;
 }
 
 }  // namespace lipdrive

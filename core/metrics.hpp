@@ -2,6 +2,9 @@
 #pragma once
 
 #include <span>
+#include <string>
+#include <string_view>
+#include <vector>
 
 namespace lipdrive {
 
@@ -24,5 +27,45 @@ struct SeriesAgreement {
 /// (ratio < 1) that smoothing can cause. Throws std::invalid_argument when the
 /// series differ in length.
 SeriesAgreement compare_series(std::span<const double> truth, std::span<const double> output);
+
+/// A word of a transcript and the video frames it spans (inclusive).
+struct WordFrames {
+  int first = 0, last = 0;
+  std::string_view word;
+  bool silence = false;  // "sil" / "sp"
+};
+
+/// The GRID words whose articulation closes the lips: bin, blue, by, place, please and the
+/// letters b, p, m ("m" is spoken /em/, so its closure comes at its end).
+bool is_bilabial_word(std::string_view word);
+
+/// How one bilabial word fared in closure_metric.
+struct WordClosure {
+  std::string word;
+  int first = 0, last = 0;  // the word's frames, before widening
+  double minimum = 0;       // smallest scaled value in the widened window; NaN when no tracked frame
+  bool closed = false;      // minimum <= kClosureLevel
+};
+
+/// Whether a mouth-opening series closes on the bilabial words and opens on the others.
+/// Per clip, the series is min-max scaled over its tracked (finite) frames. A bilabial word
+/// shows its closure when the minimum scaled value over its frames widened by 2 on each side
+/// is at most kClosureLevel. Opening: the 90th percentile (nearest rank) of the scaled values
+/// over the frames of non-silence words. Final silence: from 3 frames after the start of the
+/// last silence to its end, the median of the scaled values and their mean absolute
+/// frame-to-frame change (jitter, over consecutive tracked frames).
+struct ClosureMetric {
+  static constexpr double kClosureLevel = 0.2;
+  static constexpr int kWidening = 2, kSilenceDelay = 3;
+  int bilabial_words = 0, closures_seen = 0;
+  std::vector<WordClosure> words;  // every bilabial word, in transcript order
+  double opening = 0;              // NaN when no speech frame was tracked
+  double silence_median = 0;       // NaN when the transcript ends without a silence or it was not tracked
+  double silence_jitter = 0;
+};
+
+/// `values[f]` is frame f's value, NaN when it was not tracked; words outside the series
+/// are clipped to it.
+ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words);
 
 }  // namespace lipdrive

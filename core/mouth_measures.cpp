@@ -34,6 +34,7 @@ MouthMeasures measure_mouth(const Landmarks2D& tracked, const FitOutput& fit, co
   m.height_3d = model.height;
   m.protrusion_3d = (fit.model_landmarks(2, ibug::kOuterLipTop) - reference.neutral_upper_lip_z) / model.d;
   m.quality = fit_quality(fit.reprojection_error_px, image.d);
+  m.open = m.height_2d;
   return m;
 }
 

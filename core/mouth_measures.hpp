@@ -43,6 +43,11 @@ struct MouthMeasures {
   double width_3d = 0, height_3d = 0;    // the fitted shape in model space
   double protrusion_3d = 0;              // (z51 - neutral z51) / d_3d: positive = lips pushed forward
   double quality = 0;                    // fit_quality(): 1 = the fit explains the landmarks exactly
+  /// Lip contact (core/lip_contact.hpp), from the pixels where the image was seen: seal is the
+  /// probability that the lips touch, open the opening that drives the figure (H/d). Without
+  /// the image, seal = 0 and open = height_2d.
+  double seal = 0;
+  double open = 0;
 };
 
 /// Confidence in [0, 1] from the fit's RMS reprojection error relative to the face size

@@ -242,4 +242,16 @@ double VisemeSolver::condition_number() const {
   return std::sqrt(eigen.eigenvalues().maxCoeff() / std::max(eigen.eigenvalues().minCoeff(), 0.0));
 }
 
+void transfer_to_bilabial(VisemeWeights& weights, double seal) {
+  constexpr int kBilabial = 2;  // kVisemeNames[2]
+  static_assert(kVisemeNames[kBilabial] == "B-M-P");
+  const float s = static_cast<float>(std::clamp(seal, 0.0, 1.0));
+  float largest_other = 0;
+  for (int v = 0; v < kNumVisemes; ++v)
+    if (v != kBilabial) largest_other = std::max(largest_other, weights[v]);
+  for (int v = 0; v < kNumVisemes; ++v)
+    if (v != kBilabial) weights[v] *= 1 - s;
+  weights[kBilabial] = std::max(weights[kBilabial], s * largest_other);
+}
+
 }  // namespace lipdrive

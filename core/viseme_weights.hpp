@@ -73,6 +73,14 @@ class VisemeSolver {
 /// built from other poses: it has no viseme weights).
 std::optional<VisemeSolver> make_viseme_solver(const MorphableModel& model);
 
+/// Sealed lips in a shape the landmarks read as open are a bilabial closure (the landmark
+/// regression lags towards a half-open mouth on b, p, m): the articulation the other visemes
+/// show moves to B-M-P in proportion to `seal` (core/lip_contact.hpp), the probability that
+/// the lips touch. B-M-P becomes max(B-M-P, seal x the largest other weight) and every other
+/// weight shrinks by (1 - seal). A sealed mouth at rest has no other weight to move, so it
+/// stays at rest.
+void transfer_to_bilabial(VisemeWeights& weights, double seal);
+
 /// Lawson–Hanson NNLS on the normal equations: minimises ½ wᵀ G w − hᵀ w over w >= 0, i.e.
 /// ||A w − b||² with G = AᵀA, h = Aᵀb. At most 3·16 outer iterations (the bound Lawson and
 /// Hanson suggest); each inner step drops at least one variable, so it ends too.

@@ -103,5 +103,53 @@ TEST(CompareSeries, RejectsSeriesOfDifferentLength) {
   EXPECT_THROW(compare_series(std::vector<double>{1, 2}, std::vector<double>{1}), std::invalid_argument);
 }
 
+// A transcript of 19 frames: sil, bin, at, blue, now, sil.
+const std::vector<WordFrames> kWords = {{0, 2, "sil", true},  {3, 5, "bin", false},  {6, 6, "at", false},
+                                        {7, 8, "blue", false}, {9, 10, "now", false}, {11, 18, "sil", true}};
+
+TEST(ClosureMetric, WorkedExample) {
+  // Range 0..10, so the scaled value is v / 10.
+  const std::vector<double> v = {5, 5, 5, 10, 1, 10, 10, 10, 10, 10, 10, 0, 2, 0, 0, 1, 0, 0, 0};
+  const ClosureMetric m = closure_metric(v, kWords);
+  ASSERT_EQ(m.bilabial_words, 2);
+  EXPECT_EQ(m.closures_seen, 1);
+  ASSERT_EQ(m.words.size(), 2u);
+  EXPECT_EQ(m.words[0].word, "bin");
+  EXPECT_NEAR(m.words[0].minimum, 0.1, kTolerance);  // frames 1..7 widened: frame 4
+  EXPECT_TRUE(m.words[0].closed);
+  EXPECT_EQ(m.words[1].word, "blue");
+  EXPECT_NEAR(m.words[1].minimum, 1.0, kTolerance);  // frames 5..10 never close
+  EXPECT_FALSE(m.words[1].closed);
+  // Speech frames 3..10: seven at 1.0 and one at 0.1; the 90th percentile by nearest rank is
+  // the 8th of 8.
+  EXPECT_NEAR(m.opening, 1.0, kTolerance);
+  // Final silence from frame 14 (11 + 3) to 18: 0, 0.1, 0, 0, 0.
+  EXPECT_NEAR(m.silence_median, 0.0, kTolerance);
+  EXPECT_NEAR(m.silence_jitter, (0.1 + 0.1) / 4, kTolerance);
+}
+
+TEST(ClosureMetric, UntrackedFramesAreLeftOutNotCountedAsClosed) {
+  std::vector<double> v = {5, 5, 5, 10, 1, 10, 10, 10, 10, 10, 10, 0, 2, 0, 0, 1, 0, 0, 0};
+  v[4] = kNaN;  // the closure frame was not tracked
+  v[16] = kNaN;
+  const ClosureMetric m = closure_metric(v, kWords);
+  EXPECT_NEAR(m.words[0].minimum, 0.5, kTolerance);
+  EXPECT_FALSE(m.words[0].closed);
+  EXPECT_EQ(m.closures_seen, 0);
+  // Silence frames 14, 15, 17, 18: steps only between neighbours that were both tracked.
+  EXPECT_NEAR(m.silence_jitter, (0.1 + 0.0) / 2, kTolerance);
+}
+
+TEST(ClosureMetric, BilabialWordsOfTheGridGrammar) {
+  for (const char* word : {"bin", "blue", "by", "place", "please", "b", "p", "m"}) EXPECT_TRUE(is_bilabial_word(word)) << word;
+  for (const char* word : {"bat", "sil", "set", "lay", "f", "n", "white", "soon"}) EXPECT_FALSE(is_bilabial_word(word)) << word;
+  const std::vector<double> flat(19, 3.0);
+  const ClosureMetric m = closure_metric(flat, kWords);  // no range: everything scales to 0
+  EXPECT_EQ(m.closures_seen, 2);
+  EXPECT_NEAR(m.opening, 0.0, kTolerance);
+  const ClosureMetric none = closure_metric(flat, std::vector<WordFrames>{{0, 18, "bin", false}});
+  EXPECT_TRUE(std::isnan(none.silence_median));  // no silence in the transcript
+}
+
 }  // namespace
 }  // namespace lipdrive

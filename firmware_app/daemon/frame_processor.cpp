@@ -1,5 +1,6 @@
 #include "firmware_app/daemon/frame_processor.hpp"
 
+#include "core/lip_contact.hpp"
 #include "drivers/clock.hpp"
 
 #include <cmath>
@@ -21,6 +22,7 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   std::int64_t start = monotonic_ns();
   const TrackStatus status = tracker_.track(gray, r.landmarks);
   r.landmarks_ms = ms_since(start);
+  r.appearance = tracker_.appearance();
   if (status == TrackStatus::kNoFace) return r;
   // A newly acquired face may be another pose entirely: do not warm-start from the old one.
   if (status == TrackStatus::kAcquired) fit_ = Fitter::initial_output();
@@ -29,8 +31,15 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   r.fit_ms = ms_since(start);
   if (!tracker_.check_fit(r.landmarks, fit_.reprojection_error_px)) return r;
   start = monotonic_ns();
+  const LipGap lips = measure_lip_gap(gray, r.landmarks);
+  if (lips.valid && !tracker_.check_mouth(lips.lip_luma)) return r;
   r.measures = measure_mouth(r.landmarks, fit_, reference_);
-  if (visemes_) r.visemes = visemes_->solve(fit_, r.landmarks, set_);
+  r.measures.seal = seal_probability(lips, r.measures.height_2d);
+  r.measures.open = fused_opening(r.measures.height_2d, r.measures.seal);
+  if (visemes_) {
+    r.visemes = visemes_->solve(fit_, r.landmarks, set_);
+    transfer_to_bilabial(r.visemes, r.measures.seal);
+  }
   r.measures_ms = ms_since(start);
   r.tracked = true;
   return r;

@@ -21,6 +21,7 @@ struct FrameMeasurement {
   MouthMeasures measures;
   VisemeWeights visemes{};  // valid when `tracked`; all zero when the model has no viseme poses
   Landmarks2D landmarks;    // the tracked landmarks, valid when `tracked`
+  double appearance = 0;    // FaceTracker::appearance() of this frame
   // Time spent in each stage (ms); NaN when the stage did not run for this frame.
   double landmarks_ms = 0, fit_ms = 0, measures_ms = 0;
 };
@@ -34,6 +35,9 @@ class FrameProcessor {
   /// Measures one luma frame (CV_8UC1). Allocation-free while the face stays tracked
   /// (acquiring it runs dlib's detector, which allocates).
   const FrameMeasurement& process(const cv::Mat& gray);
+
+  /// The next frame is unrelated to the last (independent images): detect afresh.
+  void forget() { tracker_.reset(); }
 
  private:
   Fitter fitter_;

@@ -1,0 +1,85 @@
+// Lip contact from the pixels (DESIGN.md 4.8): whether the lips touch (`seal`) and the
+// uncalibrated mouth opening `open` that drives the figure.
+//
+// Why pixels: the landmark regression starts every frame from a mean shape with a half-open
+// mouth and lags toward it on short closures, so sealed lips can read 0.2 d open; the 3DMM fit
+// (regularised towards the model's mean) loses more of them. Between sealed lips the image
+// shows only the line where they meet; an open mouth shows a dark cavity and/or teeth.
+//
+// How: five vertical luma profiles across the central 60 % of the inner mouth, each from above
+// the upper lip to below the lower lip along the face's own vertical (the eye line's normal),
+// each sample the mean over its profile's share of the mouth width. Every luma is compared with
+// the lips' own (the median of the lip bands between the outer and inner contours), so gain,
+// skin tone and lighting cancel; positions are in units of d (DESIGN.md 4.4), so the measure
+// does not depend on the image resolution. Two pieces of evidence that the lips are apart:
+//  - gap: the run of "not lip" samples (darker than 0.72 or brighter than 1.3 x the lips)
+//    through the darkest sample where the lips meet, less the width of the line between
+//    sealed lips, over d;
+//  - texture: how far the profile there departs from a single valley (down to the line, up
+//    again): teeth between the lips add a bright band and a second dark line, even where they
+//    are hardly brighter than the lips (grey, evenly lit faces).
+// seal falls from 1 to 0 as the stronger of the two passes its threshold, and only while the
+// landmarks' own inner-lip height is one a lagging closure can show (<= 0.3 d). open is the
+// landmark inner-lip height (the image, not the fit: the fit loses closures the landmarks
+// had) times (1 - seal): sealed lips read 0, an open mouth keeps its landmark height.
+//
+// The thresholds were set on the first 25 clips (file-name order, bbal9a .. pbai5s) of the
+// GRID development set and checked on the other 25 and two further clips
+// (tests/test_lip_contact_eval.cpp reports both).
+#pragma once
+
+#include "core/landmarks.hpp"
+
+#include <opencv2/core/mat.hpp>
+
+namespace lipdrive {
+
+struct LipContactSettings {
+  /// Profiles across the inner mouth, evenly spread over the central `column_span` of the
+  /// inner lip width (corners 60..64), and samples along each.
+  static constexpr int kColumns = 5, kSamples = 48;
+  double column_span = 0.6;
+  /// How far each profile reaches beyond the outer lip contour, and how far beyond the inner
+  /// contours the lips are taken to meet (the landmarks' error), both over d.
+  double extend = 0.15;
+  double margin = 0.05;
+  /// A sample is cavity when darker than `dark_ratio` x the lips' luma, teeth or gloss when
+  /// brighter than `bright_ratio` x it.
+  double dark_ratio = 0.72;
+  double bright_ratio = 1.3;
+  /// Lip-like samples over at most this many pixels do not end a run of non-lip samples: a
+  /// blurred edge between teeth and cavity crosses the lips' brightness.
+  double bridge_px = 1.0;
+  /// Width of the line between sealed lips (pixels: it is the optics' blur), taken off the run.
+  double line_px = 2.0;
+  /// The pixels say "apart" at gap >= open_gap (over d) or texture >= open_texture (over the
+  /// lips' luma); seal_softness is the width of the transition, in units of those thresholds.
+  double open_gap = 0.07;
+  double open_texture = 0.05;
+  double seal_softness = 0.25;
+  /// Landmark inner-lip heights (H/d) above this are wider than any lagging closure: no seal.
+  double max_sealed_height = 0.3;
+  double height_softness = 0.02;
+};
+
+/// The pixel evidence of one frame.
+struct LipGap {
+  bool valid = false;   // the mouth is inside the image and its lips are not black
+  double gap = 0;       // median over the profiles of the non-lip run where the lips meet, over d
+  double texture = 0;   // median excess variation there (teeth), over the lips' luma
+  double lip_luma = 0;  // median luma of the lip bands
+};
+
+/// The gap between the lips in the luma image `gray` (CV_8UC1) of a face with `landmarks`.
+/// Allocates nothing; about 1,000 bilinear taps.
+LipGap measure_lip_gap(const cv::Mat& gray, const Landmarks2D& landmarks, const LipContactSettings& settings = {});
+
+/// Probability in [0, 1] that the lips touch, from the pixel evidence and the landmarks'
+/// inner-lip height (H/d); 0 without pixel evidence.
+double seal_probability(const LipGap& gap, double landmark_height, const LipContactSettings& settings = {});
+
+/// The mouth opening in H/d units that drives the `open` signal: the landmark inner-lip
+/// height, closed as far as the lips are sealed.
+double fused_opening(double landmark_height, double seal);
+
+}  // namespace lipdrive

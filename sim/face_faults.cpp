@@ -1,0 +1,31 @@
+#include "sim/face_faults.hpp"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace lipdrive {
+
+cv::Mat shifted_frame(const cv::Mat& gray, double dx, double dy, int fill) {
+  const cv::Mat move = (cv::Mat_<double>(2, 3) << 1, 0, dx, 0, 1, dy);
+  cv::Mat out;
+  if (fill < 0) cv::warpAffine(gray, out, move, gray.size(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  else cv::warpAffine(gray, out, move, gray.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(fill));
+  return out;
+}
+
+cv::Mat covered_frame(const cv::Mat& gray, double fraction, double luma, std::uint64_t seed) {
+  cv::Mat out = gray.clone();
+  const int rows = static_cast<int>(std::lround(std::clamp(fraction, 0.0, 1.0) * gray.rows));
+  if (rows == 0) return out;
+  cv::Mat cover(rows, gray.cols, CV_8UC1);
+  cv::RNG random(seed);
+  random.fill(cover, cv::RNG::NORMAL, luma, 8);
+  cv::GaussianBlur(cover, cover, cv::Size(0, 0), 3);
+  cover.copyTo(out(cv::Rect(0, gray.rows - rows, gray.cols, rows)));
+  return out;
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,182 @@
+// Lip contact (core/lip_contact.hpp) on drawn mouths whose answer is known: sealed lips with
+// the landmarks on them or lagging half open, a dark cavity, teeth hardly brighter than the
+// lips; at several resolutions and exposures; and the viseme transfer it feeds.
+#include "allocation_counter.hpp"
+#include "core/lip_contact.hpp"
+#include "core/viseme_weights.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+enum class Inside { kSealed, kCavity, kTeeth };
+
+struct DrawnMouth {
+  cv::Mat gray;
+  Landmarks2D landmarks;
+  double d = 0;
+};
+
+/// A face at `scale` (d = 40 px at scale 1) whose lips part by `opening` x d in the image, with
+/// landmarks whose inner lips part by `landmark_opening` x d (the regression's lag).
+DrawnMouth draw_mouth(Inside inside, double opening, double landmark_opening, double scale = 1.0, double gain = 1.0) {
+  Landmarks2D p = Landmarks2D::Constant(120.0);
+  const auto set = [&](int i, double x, double y) { p.col(i) << x, y; };
+  set(36, 60, 100), set(39, 88, 100), set(42, 112, 100), set(45, 140, 100), set(30, 100, 140);
+  const double d = 40, half_true = 0.5 * opening * d, half_lm = 0.5 * landmark_opening * d;
+  // Outer lips: corners at y = 180, the upper lip 7 px thick at the middle, the lower 9 px,
+  // both pushed apart by the opening.
+  set(48, 76, 180), set(54, 124, 180);
+  const double upper[5] = {175, 172, 173, 172, 175}, lower[5] = {186, 189, 190, 189, 186};
+  for (int k = 0; k < 5; ++k) {
+    set(49 + k, 84 + 8 * k, upper[k] - half_true);
+    set(59 - k, 84 + 8 * k, lower[k] + half_true);
+  }
+  set(60, 80, 180), set(64, 120, 180);
+  for (int k = 0; k < 3; ++k) {
+    set(61 + k, 90 + 10 * k, 180 - half_lm);
+    set(67 - k, 90 + 10 * k, 180 + half_lm);
+  }
+  // The true inner contour, which the landmarks may miss.
+  std::vector<cv::Point> outer, gap;
+  const auto pt = [&](double x, double y) { return cv::Point(cvRound(x * scale * 16), cvRound(y * scale * 16)); };
+  for (int i = 48; i <= 59; ++i) outer.push_back(pt(p(0, i), p(1, i)));
+  for (double x : {80.0, 90.0, 100.0, 110.0, 120.0}) gap.push_back(pt(x, 180 - (x == 80 || x == 120 ? 0 : half_true)));
+  for (double x : {110.0, 100.0, 90.0}) gap.push_back(pt(x, 180 + half_true));
+
+  cv::Mat image(cvRound(260 * scale), cvRound(200 * scale), CV_8UC1, cv::Scalar(150));
+  cv::fillPoly(image, std::vector<std::vector<cv::Point>>{outer}, cv::Scalar(110), cv::LINE_AA, 4);
+  if (inside == Inside::kSealed) {
+    cv::line(image, pt(80, 180), pt(120, 180), cv::Scalar(80), std::max(1, cvRound(scale)), cv::LINE_AA, 4);
+  } else {
+    cv::fillPoly(image, std::vector<std::vector<cv::Point>>{gap}, cv::Scalar(inside == Inside::kCavity ? 40 : 128),
+                 cv::LINE_AA, 4);
+    if (inside == Inside::kTeeth)  // the dark line between upper and lower teeth
+      cv::line(image, pt(84, 180), pt(116, 180), cv::Scalar(60), std::max(1, cvRound(scale)), cv::LINE_AA, 4);
+  }
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7 * scale);
+  image.convertTo(image, CV_8UC1, gain);
+  return {image, p * scale, d * scale};
+}
+
+TEST(LipContact, SealedLipsReadSealedEvenWhenTheLandmarksLagHalfOpen) {
+  for (const double lag : {0.0, 0.1, 0.2}) {
+    SCOPED_TRACE(::testing::Message() << "landmark opening " << lag << " d");
+    const DrawnMouth m = draw_mouth(Inside::kSealed, 0, lag);
+    const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+    ASSERT_TRUE(gap.valid);
+    EXPECT_LT(gap.gap, 0.02);
+    EXPECT_LT(gap.texture, 0.02);
+    const double seal = seal_probability(gap, lag);
+    EXPECT_GT(seal, 0.9);
+    EXPECT_LT(fused_opening(lag, seal), 0.02);
+  }
+}
+
+TEST(LipContact, ADarkCavityIsOpenAndMeasuredInUnitsOfD) {
+  for (const double opening : {0.15, 0.25, 0.4}) {
+    SCOPED_TRACE(::testing::Message() << "opening " << opening << " d");
+    const DrawnMouth m = draw_mouth(Inside::kCavity, opening, opening);
+    const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+    ASSERT_TRUE(gap.valid);
+    // The run less the width of a sealed mouth's line (2 px of 40): the blur that widens the
+    // dark run gives most of it back.
+    EXPECT_NEAR(gap.gap, opening, 0.03);
+    const double seal = seal_probability(gap, opening);
+    EXPECT_LT(seal, 0.05);
+    EXPECT_NEAR(fused_opening(opening, seal), opening, 0.02);
+  }
+}
+
+TEST(LipContact, TeethHardlyBrighterThanTheLipsStillPartThem) {
+  const DrawnMouth m = draw_mouth(Inside::kTeeth, 0.2, 0.2);
+  const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+  ASSERT_TRUE(gap.valid);
+  EXPECT_GT(gap.texture, 0.1);
+  EXPECT_LT(seal_probability(gap, 0.2), 0.05);
+}
+
+TEST(LipContact, TheSameMouthReadsTheSameAtAnyResolutionAndExposure) {
+  for (const Inside inside : {Inside::kSealed, Inside::kCavity, Inside::kTeeth}) {
+    const double opening = inside == Inside::kSealed ? 0.0 : 0.25;
+    const DrawnMouth reference = draw_mouth(inside, opening, opening + 0.1);
+    const LipGap expected = measure_lip_gap(reference.gray, reference.landmarks);
+    const double expected_seal = seal_probability(expected, opening + 0.1);
+    for (const double scale : {2.0, 4.0})
+      for (const double gain : {0.6, 1.0, 1.4}) {
+        SCOPED_TRACE(::testing::Message() << "inside " << static_cast<int>(inside) << ", scale " << scale << ", gain " << gain);
+        const DrawnMouth m = draw_mouth(inside, opening, opening + 0.1, scale, gain);
+        const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+        ASSERT_TRUE(gap.valid);
+        EXPECT_NEAR(gap.gap, expected.gap, 0.04);
+        EXPECT_NEAR(seal_probability(gap, opening + 0.1), expected_seal, 0.1);
+      }
+  }
+}
+
+TEST(LipContact, LandmarksWiderThanALaggingClosureAreNeverSealed) {
+  const DrawnMouth m = draw_mouth(Inside::kSealed, 0, 0.2);
+  const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+  EXPECT_GT(seal_probability(gap, 0.2), 0.9);
+  EXPECT_LT(seal_probability(gap, 0.45), 0.01);  // the landmarks see a wide open mouth
+}
+
+TEST(LipContact, NoPixelEvidenceLeavesTheLandmarkHeight) {
+  DrawnMouth m = draw_mouth(Inside::kSealed, 0, 0.15);
+  m.landmarks.row(1).array() += m.gray.rows;  // the mouth below the image
+  const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+  EXPECT_FALSE(gap.valid);
+  EXPECT_EQ(seal_probability(gap, 0.15), 0);
+  EXPECT_DOUBLE_EQ(fused_opening(0.15, 0), 0.15);
+  const cv::Mat black = cv::Mat::zeros(m.gray.size(), CV_8UC1);
+  EXPECT_FALSE(measure_lip_gap(black, draw_mouth(Inside::kSealed, 0, 0.15).landmarks).valid);
+}
+
+TEST(LipContact, MeasuringAllocatesNothing) {
+  const DrawnMouth m = draw_mouth(Inside::kTeeth, 0.2, 0.25, 2.0);
+  test::count_allocations_on_this_thread(true);
+  const long before = test::allocation_count();
+  double sum = 0;
+  for (int i = 0; i < 10; ++i) {
+    const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+    sum += fused_opening(0.25, seal_probability(gap, 0.25));
+  }
+  const long allocations = test::allocation_count() - before;
+  test::count_allocations_on_this_thread(false);
+  EXPECT_EQ(allocations, 0);
+  EXPECT_TRUE(std::isfinite(sum));
+}
+
+TEST(TransferToBilabial, SealedArticulationMovesToBMP) {
+  constexpr int kBMP = 2, kAah = 0, kOh = 11;
+  VisemeWeights w{};
+  w[kAah] = 0.4f;
+  w[kOh] = 0.2f;
+  w[kBMP] = 0.05f;
+  VisemeWeights open = w;
+  transfer_to_bilabial(open, 0.0);
+  EXPECT_EQ(open, w);  // lips apart: nothing moves
+
+  VisemeWeights sealed = w;
+  transfer_to_bilabial(sealed, 1.0);
+  EXPECT_FLOAT_EQ(sealed[kBMP], 0.4f);
+  EXPECT_FLOAT_EQ(sealed[kAah], 0.0f);
+  EXPECT_FLOAT_EQ(sealed[kOh], 0.0f);
+
+  VisemeWeights half = w;
+  transfer_to_bilabial(half, 0.5);
+  EXPECT_FLOAT_EQ(half[kBMP], 0.2f);
+  EXPECT_FLOAT_EQ(half[kAah], 0.2f);
+
+  VisemeWeights rest{};  // a sealed mouth at rest stays at rest
+  transfer_to_bilabial(rest, 1.0);
+  EXPECT_EQ(rest, VisemeWeights{});
+}
+
+}  // namespace
+}  // namespace lipdrive
