@@ -14,7 +14,7 @@ double MeasureRange::scale(double value) const {
 }
 
 CalibrationSample calibration_sample(const MouthMeasures& measures) {
-  return {measures.height_fit, measures.width_fit, measures.protrusion_3d};
+  return {measures.open, measures.width_fit, measures.protrusion_3d};
 }
 
 void CalibrationCapture::add(const MouthMeasures& measures) {
@@ -86,10 +86,11 @@ PerformerProfile recentre(const PerformerProfile& profile, std::span<const Calib
 DriveSignals drive_signals(const MouthMeasures& measures, std::span<const float> viseme_weights,
                            const PerformerProfile& profile) {
   DriveSignals s;
-  s[Signal::kOpen] = static_cast<float>(profile.open.scale(measures.height_fit));
+  s[Signal::kOpen] = static_cast<float>(profile.open.scale(measures.open));
   s[Signal::kWidth] = static_cast<float>(profile.width.scale(measures.width_fit));
   s[Signal::kProtrusion] = static_cast<float>(profile.protrusion.scale(measures.protrusion_3d));
   s[Signal::kTracking] = 1;
+  s[Signal::kSeal] = static_cast<float>(measures.seal);
   for (std::size_t v = 0; v < viseme_weights.size() && v < static_cast<std::size_t>(kNumVisemes); ++v)
     s[viseme_signal(static_cast<int>(v))] = viseme_weights[v];
   return s;

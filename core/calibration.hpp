@@ -21,7 +21,7 @@ struct MeasureRange {
 
 /// The three calibrated measures of one frame.
 struct CalibrationSample {
-  double open = 0;        // MouthMeasures::height_fit
+  double open = 0;        // MouthMeasures::open
   double width = 0;       // MouthMeasures::width_fit
   double protrusion = 0;  // MouthMeasures::protrusion_3d
 };
@@ -31,7 +31,7 @@ CalibrationSample calibration_sample(const MouthMeasures& measures);
 /// `lipdrive process` measures on the GRID takes and the generated talking face: closed to
 /// wide-open lips, rounded to spread, and the fit's protrusion range.
 struct PerformerProfile {
-  MeasureRange open{0.03, 0.35};            // MouthMeasures::height_fit
+  MeasureRange open{0.03, 0.35};            // MouthMeasures::open
   MeasureRange width{1.0, 1.8};             // MouthMeasures::width_fit
   MeasureRange protrusion{-0.02, 0.18};     // MouthMeasures::protrusion_3d
   MeasureRange protrusion_side{0.0, 0.12};  // the side camera's, over the nose length (rest = 0)
@@ -77,8 +77,8 @@ PerformerProfile calibrate(std::span<const CalibrationSample> neutral, std::span
 /// point, which also removes the slow drift of a helmet slipping during a take.
 PerformerProfile recentre(const PerformerProfile& profile, std::span<const CalibrationSample> neutral);
 
-/// The drive signals of one tracked frame: calibrated open / width / protrusion, viseme
-/// weights as given, tracking = 1.
+/// The drive signals of one tracked frame: calibrated open / width / protrusion, seal as
+/// measured, viseme weights as given, tracking = 1.
 DriveSignals drive_signals(const MouthMeasures& measures, std::span<const float> viseme_weights,
                            const PerformerProfile& profile);
 

@@ -5,9 +5,9 @@ namespace {
 
 // In Signal order; the viseme names are kVisemeNames with a prefix (checked in the tests).
 constexpr std::array<std::string_view, kNumSignals> kSignalNames{
-    "open",           "width",        "protrusion",   "tracking",  "viseme_Aah", "viseme_BigAah", "viseme_B-M-P",
-    "viseme_Ch-J-Sh", "viseme_D-S-T", "viseme_Eee",   "viseme_Eh", "viseme_F-V", "viseme_i",      "viseme_K",
-    "viseme_N",       "viseme_Oh",    "viseme_Ooh-Q", "viseme_R",  "viseme_Th",  "viseme_W"};
+    "open",         "width",          "protrusion",   "tracking",     "seal",      "viseme_Aah", "viseme_BigAah",
+    "viseme_B-M-P", "viseme_Ch-J-Sh", "viseme_D-S-T", "viseme_Eee",   "viseme_Eh", "viseme_F-V", "viseme_i",
+    "viseme_K",     "viseme_N",       "viseme_Oh",    "viseme_Ooh-Q", "viseme_R",  "viseme_Th",  "viseme_W"};
 
 }  // namespace
 

@@ -13,15 +13,16 @@ inline constexpr std::array<std::string_view, 16> kVisemeNames{
     "Aah", "BigAah", "B-M-P", "Ch-J-Sh", "D-S-T", "Eee", "Eh", "F-V", "i", "K", "N", "Oh", "Ooh-Q", "R", "Th", "W"};
 inline constexpr int kNumVisemes = static_cast<int>(kVisemeNames.size());
 
-/// What a drive channel can follow. kTracking is 1 while a face is tracked, else 0.
-enum class Signal : int { kOpen, kWidth, kProtrusion, kTracking, kFirstViseme };
+/// What a drive channel can follow. kTracking is 1 while a face is tracked, else 0; kSeal is
+/// the probability that the lips touch (core/lip_contact.hpp), not calibrated.
+enum class Signal : int { kOpen, kWidth, kProtrusion, kTracking, kSeal, kFirstViseme };
 inline constexpr int kNumSignals = static_cast<int>(Signal::kFirstViseme) + kNumVisemes;
 
 inline constexpr Signal viseme_signal(int viseme) {
   return static_cast<Signal>(static_cast<int>(Signal::kFirstViseme) + viseme);
 }
 
-/// "open", "width", "protrusion", "tracking", "viseme_Aah" ... "viseme_W".
+/// "open", "width", "protrusion", "tracking", "seal", "viseme_Aah" ... "viseme_W".
 std::string_view signal_name(Signal signal);
 std::optional<Signal> parse_signal(std::string_view name);
 

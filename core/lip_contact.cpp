@@ -111,7 +111,8 @@ Region inner_region(const Profile& profile, double margin_samples) {
 /// not on it.
 double gap_through_darkest(const Profile& profile, const Region& region, double lip_luma, const LipContactSettings& s) {
   constexpr int n = LipContactSettings::kSamples;
-  const float dark = static_cast<float>(s.dark_ratio * lip_luma), bright = static_cast<float>(s.bright_ratio * lip_luma);
+  const float dark = static_cast<float>(s.dark_ratio * lip_luma),
+              bright = static_cast<float>(s.bright_ratio * lip_luma);
   const auto non_lip = [&](int i) { return profile.luma[i] < dark || profile.luma[i] > bright; };
   int darkest = region.first;
   for (int i = region.first; i <= region.last; ++i)
@@ -121,8 +122,10 @@ double gap_through_darkest(const Profile& profile, const Region& region, double 
   const auto extend = [&](int step) {
     int end = darkest;
     for (int i = darkest + step, lip_run = 0; i >= 0 && i < n && lip_run <= bridge; i += step) {
-      if (non_lip(i)) end = i, lip_run = 0;
-      else ++lip_run;
+      if (non_lip(i))
+        end = i, lip_run = 0;
+      else
+        ++lip_run;
     }
     return end;
   };

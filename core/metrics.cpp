@@ -119,9 +119,10 @@ ClosureMetric closure_metric(std::span<const double> values, std::span<const Wor
         if (!std::isnan(scaled[f])) speech.push_back(scaled[f]);
     if (!is_bilabial_word(w.word)) continue;
     WordClosure closure{std::string(w.word), w.first, w.last, kNaN, false};
-    for (int f = std::max(w.first - ClosureMetric::kWidening, 0); f <= std::min(w.last + ClosureMetric::kWidening, n - 1);
-         ++f)
-      if (!std::isnan(scaled[f])) closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
+    for (int f = std::max(w.first - ClosureMetric::kWidening, 0);
+         f <= std::min(w.last + ClosureMetric::kWidening, n - 1); ++f)
+      if (!std::isnan(scaled[f]))
+        closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
     closure.closed = closure.minimum <= ClosureMetric::kClosureLevel;
     ++m.bilabial_words;
     m.closures_seen += closure.closed;

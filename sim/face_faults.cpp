@@ -11,8 +11,10 @@ namespace lipdrive {
 cv::Mat shifted_frame(const cv::Mat& gray, double dx, double dy, int fill) {
   const cv::Mat move = (cv::Mat_<double>(2, 3) << 1, 0, dx, 0, 1, dy);
   cv::Mat out;
-  if (fill < 0) cv::warpAffine(gray, out, move, gray.size(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  else cv::warpAffine(gray, out, move, gray.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(fill));
+  if (fill < 0)
+    cv::warpAffine(gray, out, move, gray.size(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  else
+    cv::warpAffine(gray, out, move, gray.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(fill));
   return out;
 }
 

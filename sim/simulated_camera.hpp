@@ -56,6 +56,10 @@ class SimulatedCamera : public FrameSource {
   double frame_rate() const override { return frame_rate_; }
   std::string describe() const override;
 
+  /// Images (a folder or a single one): every frame is unrelated to the last, so a tracker
+  /// detects the face afresh in each; a video's frames follow one another.
+  bool independent_frames() const { return kind_ == Kind::kImages; }
+
   /// What went wrong with the most recent kCorrupt, if anything did.
   const std::optional<std::string>& last_error() const { return last_error_; }
 

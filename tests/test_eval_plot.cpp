@@ -5,6 +5,7 @@
 #include "firmware_app/tables/grid_align.hpp"
 #include "fixture_paths.hpp"
 
+#include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -147,6 +148,44 @@ TEST_F(EvalPlotTest, EvalWithAlignmentScoresOnlySpeechFrames) {
   EXPECT_EQ(width.at("n"), 1);
   EXPECT_NEAR(width.at("mae").get<double>(), 1, 1e-12);
   EXPECT_TRUE(width.at("pearson_r").is_null());  // one pair: no correlation
+}
+
+TEST_F(EvalPlotTest, EvalWithAlignmentAloneReportsTheClosureMetric) {
+  // Silence 0-1, "bin" 2-3 (the lips meet at frame 3), "one" 4-6, "please" 7-8 (within 2
+  // frames of it nothing below 0.3 of the range), final silence 9-16, scored from frame 12.
+  std::string csv = "frame,tracked,open\n";
+  const double open[] = {0.1, 0.1, 0.5, 0.0, 0.8, 1.0, 0.9, 0.6, 0.55, 0.3, 0.3, 0.1, 0.1, 0.12, 0.1, 0.1, 0.1};
+  for (int f = 0; f < 17; ++f) csv += fmt::format("{},1,{}\n", f, open[f]);
+  const auto pred = write("pred.csv", csv);
+  const auto align =
+      write("take.align", "0 2000 sil\n2000 4000 bin\n4000 7000 one\n7000 9000 please\n9000 17000 sil\n");
+  const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  const auto report = nlohmann::json::parse(result.out);
+  EXPECT_TRUE(report.at("truth").is_null());
+  ASSERT_EQ(report.at("closure").size(), 1u);
+  const auto& closure = report.at("closure")[0];
+  EXPECT_EQ(closure.at("column"), "open");
+  EXPECT_EQ(closure.at("bilabial_words"), 2);
+  EXPECT_EQ(closure.at("closures_seen"), 1);  // "bin" closes, "please" does not
+  // Scaled by the maximum 1.0: speech frames 2..8 are 0.5 0 0.8 1 0.9 0.6 0.55; 90th percentile
+  // by nearest rank (rank 7 of 7) = 1.
+  EXPECT_NEAR(closure.at("opening").get<double>(), 1.0, 1e-9);
+  // Final silence from frame 12: 0.1 0.12 0.1 0.1 0.1 -> median 0.1, jitter (0.02+0.02)/4.
+  EXPECT_NEAR(closure.at("silence_median").get<double>(), 0.1, 1e-9);
+  EXPECT_NEAR(closure.at("silence_jitter").get<double>(), 0.01, 1e-9);
+  ASSERT_EQ(closure.at("words").size(), 2u);
+  EXPECT_EQ(closure.at("words")[0].at("word"), "bin");
+  EXPECT_TRUE(closure.at("words")[0].at("closed").get<bool>());
+
+  const RunResult table = run({"eval", "--pred", pred, "--align", align, "--columns", "open"});
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  EXPECT_THAT(table.out, HasSubstr("closures"));
+  EXPECT_THAT(table.out, HasSubstr("1/2"));
+
+  const RunResult neither = run({"eval", "--pred", pred});
+  EXPECT_NE(neither.exit_code, 0);
+  EXPECT_THAT(neither.err, HasSubstr("--truth"));
 }
 
 TEST_F(EvalPlotTest, EvalComparesTwoProcessOutputsAsATable) {

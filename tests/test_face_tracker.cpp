@@ -273,8 +273,8 @@ TEST(FaceTracker, SteadyStateTrackingAllocatesNothing) {
   for (std::size_t f = 1; f < frames.size(); ++f) {
     const long before = test::allocation_count();
     const TrackStatus status = tracker.track(frames[f], landmarks);
-    const bool accepted = tracker.check_fit(landmarks, 0.0) &&
-                          tracker.check_mouth(measure_lip_gap(frames[f], landmarks).lip_luma);
+    const bool accepted =
+        tracker.check_fit(landmarks, 0.0) && tracker.check_mouth(measure_lip_gap(frames[f], landmarks).lip_luma);
     const long allocations = test::allocation_count() - before;
     ASSERT_EQ(status, TrackStatus::kTracking) << "frame " << f;
     ASSERT_TRUE(accepted);
@@ -388,7 +388,8 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
   for (int f = cut; f < static_cast<int>(second.size()); ++f) moved.push_back(shifted_frame(second[f], dx, 0));
   const std::vector<Landmarks2D> moved_truth = clean_landmarks(moved);
   for (int f = 0; f < cut; ++f) cut_clip.frames.push_back(first[f]), cut_clip.truth.push_back(clean[f]);
-  for (std::size_t f = 0; f < moved.size(); ++f) cut_clip.frames.push_back(moved[f]), cut_clip.truth.push_back(moved_truth[f]);
+  for (std::size_t f = 0; f < moved.size(); ++f)
+    cut_clip.frames.push_back(moved[f]), cut_clip.truth.push_back(moved_truth[f]);
   for (const Landmarks2D& p : cut_clip.truth) cut_clip.visible.push_back(inside(p));
   clips.push_back(std::move(cut_clip));
 
@@ -423,11 +424,13 @@ void check_fault_clips(const std::vector<FaultClip>& clips) {
     SCOPED_TRACE(clip.name);
     const FaultReport r = run_fault_clip(clip);
     ::testing::Test::RecordProperty(fmt::format("{}_false_tracks", clip.name), r.false_tracks);
-    ::testing::Test::RecordProperty(fmt::format("{}_tracked", clip.name), fmt::format("{}/{}", r.tracked, clip.frames.size()));
+    ::testing::Test::RecordProperty(fmt::format("{}_tracked", clip.name),
+                                    fmt::format("{}/{}", r.tracked, clip.frames.size()));
     ::testing::Test::RecordProperty(fmt::format("{}_lost_while_visible", clip.name), r.lost_while_visible);
-    fmt::print("{:<24} {:>4} frames {:>4} tracked {:>3} false tracks {:>3} lost while the face was in full view, worst "
-               "tracked error {:.3f} IOD\n",
-               clip.name, clip.frames.size(), r.tracked, r.false_tracks, r.lost_while_visible, r.worst_error);
+    fmt::print(
+        "{:<24} {:>4} frames {:>4} tracked {:>3} false tracks {:>3} lost while the face was in full view, worst "
+        "tracked error {:.3f} IOD\n",
+        clip.name, clip.frames.size(), r.tracked, r.false_tracks, r.lost_while_visible, r.worst_error);
     EXPECT_EQ(r.false_tracks, 0);
     // The cut re-detects in its first frame; the face leaving and the cover lose it only while
     // it is not all there.

@@ -109,7 +109,8 @@ TEST(LipContact, TheSameMouthReadsTheSameAtAnyResolutionAndExposure) {
     const double expected_seal = seal_probability(expected, opening + 0.1);
     for (const double scale : {2.0, 4.0})
       for (const double gain : {0.6, 1.0, 1.4}) {
-        SCOPED_TRACE(::testing::Message() << "inside " << static_cast<int>(inside) << ", scale " << scale << ", gain " << gain);
+        SCOPED_TRACE(::testing::Message()
+                     << "inside " << static_cast<int>(inside) << ", scale " << scale << ", gain " << gain);
         const DrawnMouth m = draw_mouth(inside, opening, opening + 0.1, scale, gain);
         const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
         ASSERT_TRUE(gap.valid);

@@ -69,10 +69,7 @@ ClipSeries process_clip(const fs::path& video) {
   ClipSeries clip;
   clip.name = video.stem().string();
   clip.align = read_grid_align(fs::path(video).replace_extension(".align"));
-  for (const AlignedWord& w : clip.align) {
-    const FrameRange range = frame_range(w);
-    clip.words.push_back({range.first, range.last, w.word, is_silence(w)});
-  }
+  clip.words = word_frames(clip.align);
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
   cv::VideoCapture capture(video.string());
   cv::Mat bgr, gray;
@@ -125,10 +122,11 @@ HalfFigures score(const std::vector<ClipSeries>& clips, std::vector<double> Clip
 }
 
 std::string summary(const HalfFigures& h) {
-  return fmt::format("closures {}/{} ({:.1f} %), clips failing opening/silence/jitter {}/{} (lowest opening {:.2f}, "
-                     "highest final silence {:.2f}, highest jitter {:.3f})",
-                     h.closures, h.words, 100.0 * h.closures / std::max(h.words, 1), h.clips_failing, h.clips,
-                     h.worst_opening, h.worst_silence, h.worst_jitter);
+  return fmt::format(
+      "closures {}/{} ({:.1f} %), clips failing opening/silence/jitter {}/{} (lowest opening {:.2f}, "
+      "highest final silence {:.2f}, highest jitter {:.3f})",
+      h.closures, h.words, 100.0 * h.closures / std::max(h.words, 1), h.clips_failing, h.clips, h.worst_opening,
+      h.worst_silence, h.worst_jitter);
 }
 
 /// B-M-P reaches 0.5 somewhere in each bilabial word (widened by 2 frames), and its mean over
@@ -148,7 +146,8 @@ std::pair<std::string, double> bilabial_viseme_figure(const std::vector<ClipSeri
         if (std::isfinite(clip.bilabial_viseme[f])) best = std::max(best, clip.bilabial_viseme[f]);
       reached += best >= 0.5;
     }
-    const auto last = std::find_if(clip.words.rbegin(), clip.words.rend(), [](const WordFrames& w) { return w.silence; });
+    const auto last =
+        std::find_if(clip.words.rbegin(), clip.words.rend(), [](const WordFrames& w) { return w.silence; });
     if (last == clip.words.rend()) continue;
     for (int f = last->first + 3; f <= std::min(n - 1, last->last); ++f)
       if (std::isfinite(clip.bilabial_viseme[f])) rest_sum += clip.bilabial_viseme[f], ++rest_frames;
@@ -163,7 +162,8 @@ TEST(LipClosureEvaluation, GridClosuresOnTuningAndCheckClips) {
   if (development.size() < 2 && fixtures.empty()) GTEST_SKIP() << "no GRID clips in " << shared;
   const std::size_t tuning_count = development.size() / 2;  // the first half in file-name order
   std::vector<ClipSeries> tuning, check;
-  for (std::size_t i = 0; i < development.size(); ++i) (i < tuning_count ? tuning : check).push_back(process_clip(development[i]));
+  for (std::size_t i = 0; i < development.size(); ++i)
+    (i < tuning_count ? tuning : check).push_back(process_clip(development[i]));
   for (const fs::path& clip : fixtures) check.push_back(process_clip(clip));
 
   for (const auto& [half, clips] : {std::pair{"tuning", &tuning}, std::pair{"check", &check}}) {
@@ -176,23 +176,27 @@ TEST(LipClosureEvaluation, GridClosuresOnTuningAndCheckClips) {
     const HalfFigures landmarks = score(*clips, &ClipSeries::height_2d);
     const HalfFigures fit = score(*clips, &ClipSeries::height_fit);
     const auto [bmp_words, bmp_rest] = bilabial_viseme_figure(*clips);
-    fmt::print("GRID {} half, {} clips, {} frames, {} tracked, {} lost after acquisition\n", half, clips->size(), frames,
-               tracked, lost);
-    fmt::print("  open        {}\n  height_2d   {}\n  height_fit  {}\n", summary(open), summary(landmarks), summary(fit));
+    fmt::print("GRID {} half, {} clips, {} frames, {} tracked, {} lost after acquisition\n", half, clips->size(),
+               frames, tracked, lost);
+    fmt::print("  open        {}\n  height_2d   {}\n  height_fit  {}\n", summary(open), summary(landmarks),
+               summary(fit));
     fmt::print("  viseme B-M-P >= 0.5 on {} bilabial words; mean {:.3f} in the final silences\n", bmp_words, bmp_rest);
     for (const std::string& miss : open.misses) fmt::print("  open miss: {}\n", miss);
     ::testing::Test::RecordProperty(fmt::format("grid_{}_open", half), summary(open));
     ::testing::Test::RecordProperty(fmt::format("grid_{}_height_2d", half), summary(landmarks));
     ::testing::Test::RecordProperty(fmt::format("grid_{}_height_fit", half), summary(fit));
-    ::testing::Test::RecordProperty(fmt::format("grid_{}_bmp_viseme", half), fmt::format("{} words, rest {:.3f}", bmp_words, bmp_rest));
+    ::testing::Test::RecordProperty(fmt::format("grid_{}_bmp_viseme", half),
+                                    fmt::format("{} words, rest {:.3f}", bmp_words, bmp_rest));
 
     // What drives the figure shows at least the closures the raw landmarks show, and 95 % of all.
     EXPECT_GE(open.closures, landmarks.closures) << half;
     EXPECT_GE(open.closures, 0.95 * open.words) << half;
     // Every clip opens, rests and keeps still in its final silence: on the clips the thresholds
     // were set on, all of them; on the check clips, no fewer than with the landmark height.
-    if (std::string(half) == "tuning") EXPECT_EQ(open.clips_failing, 0);
-    else EXPECT_LE(open.clips_failing, landmarks.clips_failing);
+    if (std::string(half) == "tuning")
+      EXPECT_EQ(open.clips_failing, 0);
+    else
+      EXPECT_LE(open.clips_failing, landmarks.clips_failing);
   }
 }
 
@@ -233,7 +237,8 @@ PhotoResult process_photo(FrameProcessor& processor, const fs::path& image, bool
   if (crop) {
     const Eigen::Vector2d low = truth.rowwise().minCoeff(), high = truth.rowwise().maxCoeff();
     const Eigen::Vector2d size = high - low;
-    const int x0 = std::max(0, static_cast<int>(low.x() - size.x())), y0 = std::max(0, static_cast<int>(low.y() - size.y()));
+    const int x0 = std::max(0, static_cast<int>(low.x() - size.x())),
+              y0 = std::max(0, static_cast<int>(low.y() - size.y()));
     const int x1 = std::min(gray.cols, static_cast<int>(high.x() + size.x())),
               y1 = std::min(gray.rows, static_cast<int>(high.y() + size.y()));
     gray = gray(cv::Rect(x0, y0, x1 - x0, y1 - y0)).clone();
@@ -313,8 +318,8 @@ TEST(LipClosureEvaluation, LfpwPhotographs) {
   const std::vector<PhotoResult> first(cropped.begin(), cropped.begin() + static_cast<long>(half)),
       second(cropped.begin() + static_cast<long>(half), cropped.end());
   using Set = std::pair<const char*, const std::vector<PhotoResult>*>;
-  for (const auto& [name, results] : {Set{"all", &cropped}, Set{"first half", &first}, Set{"second half", &second},
-                                      Set{"whole images", &whole}}) {
+  for (const auto& [name, results] :
+       {Set{"all", &cropped}, Set{"first half", &first}, Set{"second half", &second}, Set{"whole images", &whole}}) {
     const PhotoFigures f = photo_figures(*results);
     std::string untracked;
     for (const std::string& u : f.untracked) untracked += " " + u;

@@ -104,7 +104,7 @@ TEST(CompareSeries, RejectsSeriesOfDifferentLength) {
 }
 
 // A transcript of 19 frames: sil, bin, at, blue, now, sil.
-const std::vector<WordFrames> kWords = {{0, 2, "sil", true},  {3, 5, "bin", false},  {6, 6, "at", false},
+const std::vector<WordFrames> kWords = {{0, 2, "sil", true},   {3, 5, "bin", false},  {6, 6, "at", false},
                                         {7, 8, "blue", false}, {9, 10, "now", false}, {11, 18, "sil", true}};
 
 TEST(ClosureMetric, WorkedExample) {
@@ -141,8 +141,10 @@ TEST(ClosureMetric, UntrackedFramesAreLeftOutNotCountedAsClosed) {
 }
 
 TEST(ClosureMetric, BilabialWordsOfTheGridGrammar) {
-  for (const char* word : {"bin", "blue", "by", "place", "please", "b", "p", "m"}) EXPECT_TRUE(is_bilabial_word(word)) << word;
-  for (const char* word : {"bat", "sil", "set", "lay", "f", "n", "white", "soon"}) EXPECT_FALSE(is_bilabial_word(word)) << word;
+  for (const char* word : {"bin", "blue", "by", "place", "please", "b", "p", "m"})
+    EXPECT_TRUE(is_bilabial_word(word)) << word;
+  for (const char* word : {"bat", "sil", "set", "lay", "f", "n", "white", "soon"})
+    EXPECT_FALSE(is_bilabial_word(word)) << word;
   const std::vector<double> flat(19, 3.0);
   const ClosureMetric m = closure_metric(flat, kWords);  // no range: everything scales to 0
   EXPECT_EQ(m.closures_seen, 2);

@@ -1,11 +1,14 @@
 // Acceptance tests of `lipdrive process`: accuracy on the generated talking face, lip
 // closures on real GRID speech, and bad input that must fail cleanly.
+#include "core/face_tracker.hpp"
 #include "core/metrics.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
+#include "sim/face_faults.hpp"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -180,6 +183,51 @@ TEST_F(ProcessTest, GridSpeechClosesTheLipsOnBilabials) {
   for (int f = 56; f <= 74; ++f) silence += height[f];
   RecordProperty("scaled_height_fit_final_silence_mean", fmt::format("{:.3f}", silence / 19));
   EXPECT_LE(silence / 19, 0.15) << "mouth not closed in the final silence";
+}
+
+/// The tracked landmarks of each row (x0..x67, y0..y67); empty for an untracked row.
+std::vector<Landmarks2D> landmark_rows(const CsvTable& table) {
+  std::vector<Landmarks2D> rows(table.rows.size());
+  const auto tracked = numeric_column(table, "tracked");
+  for (int i = 0; i < kNumLandmarks; ++i) {
+    const auto x = numeric_column(table, fmt::format("x{}", i)), y = numeric_column(table, fmt::format("y{}", i));
+    for (std::size_t r = 0; r < rows.size(); ++r) rows[r].col(i) << x[r], y[r];
+  }
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    if (tracked[r] != 1) rows[r].setConstant(std::nan(""));
+  return rows;
+}
+
+TEST_F(ProcessTest, EveryImageOfAFolderIsDetectedAfresh) {
+  // Three photographs of the same face in different places, as unrelated pictures are: each
+  // must be found where it is, not where the previous picture had it.
+  cv::VideoCapture capture((kFixtureDir / "talking_face.avi").string());
+  cv::Mat bgr, gray;
+  ASSERT_TRUE(capture.read(bgr));
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  const fs::path folder = dir_ / "photos";
+  fs::create_directories(folder);
+  const std::vector<Eigen::Vector2d> offsets{{0, 0}, {120, 0}, {-100, 30}};
+  for (std::size_t i = 0; i < offsets.size(); ++i)
+    cv::imwrite((folder / fmt::format("photo{}.png", i)).string(),
+                shifted_frame(gray, offsets[i].x(), offsets[i].y(), 128));
+
+  const fs::path single = dir_ / "single.csv", all = dir_ / "all.csv";
+  ProcessRun run =
+      run_process((folder / "photo0.png").string() + " --include-landmarks --out " + single.string(), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  run = run_process(folder.string() + " --include-landmarks --out " + all.string(), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  const Landmarks2D reference = landmark_rows(read_csv_table(single)).at(0);
+  ASSERT_TRUE(reference.allFinite()) << "the photograph alone is not tracked";
+  const std::vector<Landmarks2D> rows = landmark_rows(read_csv_table(all));
+  ASSERT_EQ(rows.size(), offsets.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    ASSERT_TRUE(rows[i].allFinite()) << "photo " << i << " not tracked";
+    const Landmarks2D expected = reference.colwise() + offsets[i];
+    const double error = (rows[i] - expected).colwise().norm().mean() / interocular_distance(expected);
+    EXPECT_LT(error, 0.05) << "photo " << i;
+  }
 }
 
 TEST_F(ProcessTest, MissingInputFailsWithItsName) {

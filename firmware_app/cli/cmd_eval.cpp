@@ -1,5 +1,7 @@
 // `lipdrive eval`: per-column agreement between a ground-truth CSV and an output
-// CSV (docs/method.md 5), rows matched by frame number.
+// CSV (docs/method.md 5), rows matched by frame number; with a GRID transcript
+// (--align), also the closure metric of each output column (lips closing on the
+// bilabial words, opening on the others, still in the final silence).
 #include "core/metrics.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
@@ -25,8 +27,9 @@ namespace lipdrive {
 namespace {
 
 // The mouth measures `lipdrive process` writes, in its column order.
-constexpr std::array<std::string_view, 8> kMeasureColumns = {
-    "width_2d", "height_2d", "width_fit", "height_fit", "width_3d", "height_3d", "protrusion_3d", "protrusion_side"};
+constexpr std::array<std::string_view, 10> kMeasureColumns = {
+    "width_2d",  "height_2d",     "width_fit", "height_fit", "width_3d",
+    "height_3d", "protrusion_3d", "open",      "seal",       "protrusion_side"};
 // Columns that identify or qualify a row rather than measure the mouth.
 constexpr std::array<std::string_view, 5> kRowColumns = {"frame", "time_s", "source", "tracked", "quality"};
 
@@ -41,6 +44,11 @@ struct EvalOptions {
 struct ColumnAgreement {
   std::string column;
   SeriesAgreement agreement;
+};
+
+struct ColumnClosure {
+  std::string column;
+  ClosureMetric closure;
 };
 
 /// The measure columns both files have; failing that, every common column that is
@@ -120,6 +128,32 @@ std::vector<ColumnAgreement> compare_columns(const CsvTable& truth, const CsvTab
   return results;
 }
 
+/// The measure columns of an output scored on its own (closure metric without truth).
+std::vector<std::string> output_columns(const CsvTable& pred) {
+  std::vector<std::string> columns;
+  for (std::string_view name : kMeasureColumns)
+    if (has_column(pred, name)) columns.emplace_back(name);
+  if (columns.empty())
+    throw CommandError(fmt::format("{} has no mouth measure column", pred.path.string()), kExitDataError);
+  return columns;
+}
+
+/// closure_metric of each column, its values placed by frame number (NaN where a frame is
+/// missing or was not tracked).
+std::vector<ColumnClosure> closure_columns(const CsvTable& pred, const std::vector<std::string>& columns,
+                                           std::span<const WordFrames> words) {
+  const std::vector<int> frames = frame_numbers(pred);
+  const int count = frames.empty() ? 0 : *std::max_element(frames.begin(), frames.end()) + 1;
+  std::vector<ColumnClosure> results;
+  for (const std::string& column : columns) {
+    const std::vector<double> values = numeric_column(pred, column);
+    std::vector<double> series(static_cast<std::size_t>(count), std::nan(""));
+    for (std::size_t row = 0; row < frames.size(); ++row) series[static_cast<std::size_t>(frames[row])] = values[row];
+    results.push_back({column, closure_metric(series, words)});
+  }
+  return results;
+}
+
 void print_table(const std::vector<ColumnAgreement>& results) {
   std::size_t name_width = std::string_view("column").size();
   for (const auto& result : results) name_width = std::max(name_width, result.column.size());
@@ -131,11 +165,52 @@ void print_table(const std::vector<ColumnAgreement>& results) {
   }
 }
 
+void print_closures(const std::vector<ColumnClosure>& results) {
+  std::size_t name_width = std::string_view("column").size();
+  for (const auto& result : results) name_width = std::max(name_width, result.column.size());
+  fmt::print("closure metric (min-max scaled; a closure is <= {:.1f} within {} frames of a bilabial word):\n",
+             ClosureMetric::kClosureLevel, ClosureMetric::kWidening);
+  fmt::print("{:<{}} {:>10} {:>8} {:>15} {:>15}\n", "column", name_width, "closures", "opening", "silence_median",
+             "silence_jitter");
+  for (const auto& [column, m] : results) {
+    fmt::print("{:<{}} {:>10} {:>8.3f} {:>15.3f} {:>15.4f}\n", column, name_width,
+               fmt::format("{}/{}", m.closures_seen, m.bilabial_words), m.opening, m.silence_median, m.silence_jitter);
+    for (const WordClosure& w : m.words)
+      if (!w.closed)
+        fmt::print("  {}: \"{}\" (frames {}..{}) not closed: minimum {:.3f}\n", column, w.word, w.first, w.last,
+                   w.minimum);
+  }
+}
+
+/// NaN becomes JSON null.
+nlohmann::json number(double value) { return std::isnan(value) ? nlohmann::json() : nlohmann::json(value); }
+
+nlohmann::json closures_json(const std::vector<ColumnClosure>& results) {
+  nlohmann::json json = nlohmann::json::array();
+  for (const auto& [column, m] : results) {
+    nlohmann::json words = nlohmann::json::array();
+    for (const WordClosure& w : m.words)
+      words.push_back({{"word", w.word},
+                       {"first", w.first},
+                       {"last", w.last},
+                       {"minimum", number(w.minimum)},
+                       {"closed", w.closed}});
+    json.push_back({{"column", column},
+                    {"bilabial_words", m.bilabial_words},
+                    {"closures_seen", m.closures_seen},
+                    {"opening", number(m.opening)},
+                    {"silence_median", number(m.silence_median)},
+                    {"silence_jitter", number(m.silence_jitter)},
+                    {"words", words}});
+  }
+  return json;
+}
+
 /// Undefined metrics (NaN) become JSON null.
 nlohmann::json to_json(const EvalOptions& options, std::size_t frames_matched,
-                       const std::vector<ColumnAgreement>& results) {
+                       const std::vector<ColumnAgreement>& results, const std::vector<ColumnClosure>& closures) {
   nlohmann::json json;
-  json["truth"] = options.truth_path;
+  json["truth"] = options.truth_path.empty() ? nlohmann::json() : nlohmann::json(options.truth_path);
   json["pred"] = options.pred_path;
   json["align"] = options.align_path.empty() ? nlohmann::json() : nlohmann::json(options.align_path);
   json["frames_matched"] = frames_matched;
@@ -149,31 +224,51 @@ nlohmann::json to_json(const EvalOptions& options, std::size_t frames_matched,
                                {"pearson_r", a.pearson_r},
                                {"std_ratio", a.std_ratio}});
   }
+  if (!options.align_path.empty()) json["closure"] = closures_json(closures);
   return json;
 }
 
 void run_eval(const EvalOptions& options) {
-  const CsvTable truth = read_csv_table(options.truth_path);
+  if (options.truth_path.empty() && options.align_path.empty()) throw CLI::RequiredError("--truth or --align");
   const CsvTable pred = read_csv_table(options.pred_path);
-  const std::vector<std::string> columns = options.columns.empty() ? default_columns(truth, pred) : options.columns;
+  std::vector<AlignedWord> align;
+  if (!options.align_path.empty()) align = read_grid_align(options.align_path);
 
-  std::optional<std::set<int>> scored_frames;
-  if (!options.align_path.empty()) scored_frames = speech_frames(read_grid_align(options.align_path));
-  const auto rows = matched_rows(truth, pred, scored_frames);
-  if (rows.empty()) {
-    throw CommandError(fmt::format("{} and {} have no {}frames in common", options.truth_path, options.pred_path,
-                                   scored_frames ? "speech " : ""),
-                       kExitDataError);
+  std::vector<ColumnAgreement> results;
+  std::size_t frames_matched = 0;
+  std::vector<std::string> columns = options.columns;
+  if (!options.truth_path.empty()) {
+    const CsvTable truth = read_csv_table(options.truth_path);
+    if (columns.empty()) columns = default_columns(truth, pred);
+    std::optional<std::set<int>> scored_frames;
+    if (!align.empty()) scored_frames = speech_frames(align);
+    const auto rows = matched_rows(truth, pred, scored_frames);
+    if (rows.empty()) {
+      throw CommandError(fmt::format("{} and {} have no {}frames in common", options.truth_path, options.pred_path,
+                                     scored_frames ? "speech " : ""),
+                         kExitDataError);
+    }
+    frames_matched = rows.size();
+    results = compare_columns(truth, pred, columns, rows);
+  } else if (columns.empty()) {
+    columns = output_columns(pred);
   }
+  std::vector<ColumnClosure> closures;
+  if (!align.empty()) closures = closure_columns(pred, columns, word_frames(align));
 
-  const std::vector<ColumnAgreement> results = compare_columns(truth, pred, columns, rows);
   if (options.json) {
-    std::cout << to_json(options, rows.size(), results).dump(2) << '\n';
+    std::cout << to_json(options, frames_matched, results, closures).dump(2) << '\n';
     return;
   }
-  fmt::print("truth {} vs output {}: {} {}frames matched\n", options.truth_path, options.pred_path, rows.size(),
-             scored_frames ? "speech " : "");
-  print_table(results);
+  if (!options.truth_path.empty()) {
+    fmt::print("truth {} vs output {}: {} {}frames matched\n", options.truth_path, options.pred_path, frames_matched,
+               align.empty() ? "" : "speech ");
+    print_table(results);
+  }
+  if (!align.empty()) {
+    fmt::print("output {} against the words of {}\n", options.pred_path, options.align_path);
+    print_closures(closures);
+  }
 }
 
 }  // namespace
@@ -183,13 +278,14 @@ void add_eval_command(CLI::App& app) {
   CLI::App* eval =
       app.add_subcommand("eval",
                          "Compare an output CSV with ground truth: scaled RMSE, MAE, max error, Pearson r, "
-                         "std ratio per column");
-  eval->add_option("--truth", options->truth_path, "Ground-truth CSV (or any per-frame CSV)")->required();
+                         "std ratio per column; with --align, the lip-closure metric");
+  eval->add_option("--truth", options->truth_path, "Ground-truth CSV (or any per-frame CSV); optional with --align");
   eval->add_option("--pred", options->pred_path, "Output CSV to score, e.g. from lipdrive process")->required();
   eval->add_option("--columns", options->columns, "Columns to compare (default: the mouth measures both files have)")
       ->delimiter(',');
   eval->add_option("--align", options->align_path,
-                   "GRID .align transcript: score only frames overlapping spoken words");
+                   "GRID .align transcript: score only frames overlapping spoken words, and report the closure "
+                   "metric of each output column (bilabial closures seen, opening, final-silence median and jitter)");
   eval->add_flag("--json", options->json, "Print JSON instead of a table");
   eval->callback([options] { run_eval(*options); });
 }

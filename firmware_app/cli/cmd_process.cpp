@@ -1,8 +1,9 @@
 // `lipdrive process INPUT`: the offline pipeline over a recording (video, image or folder
 // of images): landmarks -> 3DMM fit -> mouth measures, one CSV row per frame
-// (tables/measures_csv.hpp). The tracker and the fit are built by the daemon's factory
-// (config/factories.hpp) from `--config FILE`, or from the defaults, so offline results are
-// the rig's.
+// (tables/measures_csv.hpp). Video frames are tracked from one to the next; images (a
+// folder or a single one) are unrelated, so each is detected afresh. The tracker and the
+// fit are built by the daemon's factory (config/factories.hpp) from `--config FILE`, or
+// from the defaults, so offline results are the rig's.
 //
 // A second thread decodes ahead into a small ring of preallocated luma buffers, so decoding
 // overlaps tracking and fitting on a 2-core board; rows still come out in frame order.
@@ -251,6 +252,7 @@ void run_process(const ProcessOptions& options) {
   if (!options.side.empty()) side.emplace(options);
   out << measures_csv_header(options.include_landmarks) << (side ? ",protrusion_side" : "") << '\n';
 
+  const bool independent = camera.independent_frames();
   const bool progress = ::isatty(STDERR_FILENO) == 1;
   StageTimes times;
   std::size_t rows = 0, tracked_rows = 0;
@@ -280,6 +282,7 @@ void run_process(const ProcessOptions& options) {
       continue;
     }
     times.decode.push_back(frame.decode_ms);
+    if (independent) processor->forget();
     const FrameMeasurement& result = processor->process(frame.gray);
     times.landmarks.push_back(result.landmarks_ms);
     if (!std::isnan(result.fit_ms)) times.fit.push_back(result.fit_ms);

@@ -293,8 +293,9 @@ void read_channels(std::vector<Section> channels, Config& config) {
     if (const auto parsed = parse_signal(signal)) {
       spec.signal = *parsed;
     } else {
-      channel.fail("signal",
-                   fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, viseme_<name>)", signal));
+      channel.fail(
+          "signal",
+          fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, seal, viseme_<name>)", signal));
     }
     spec.in_min = channel.number("in_min", 0, -kMaxIn, kMaxIn);
     spec.in_max = channel.number("in_max", 1, -kMaxIn, kMaxIn);

@@ -101,9 +101,9 @@ void Daemon::report_status() {
   const std::string mouth =
       latest.tracked && s.connected
           ? fmt::format(
-                "mouth H/d {:.3f} W/d {:.3f} protrusion {:+.3f} ({}), drive open {:.2f} width {:.2f} "
-                "protrusion {:.2f}",
-                latest.measures.height_fit, latest.measures.width_fit,
+                "mouth open H/d {:.3f} seal {:.2f} W/d {:.3f} protrusion {:+.3f} ({}), drive open {:.2f} "
+                "width {:.2f} protrusion {:.2f}",
+                latest.measures.open, latest.measures.seal, latest.measures.width_fit,
                 latest.side_used ? latest.protrusion_side : latest.measures.protrusion_3d,
                 latest.side_used ? "side camera" : "3D fit", latest.signals[Signal::kOpen],
                 latest.signals[Signal::kWidth], latest.signals[Signal::kProtrusion])

@@ -71,6 +71,16 @@ std::set<int> speech_frames(std::span<const AlignedWord> words) {
   return frames;
 }
 
+std::vector<WordFrames> word_frames(std::span<const AlignedWord> words) {
+  std::vector<WordFrames> frames;
+  frames.reserve(words.size());
+  for (const AlignedWord& word : words) {
+    const FrameRange range = frame_range(word);
+    frames.push_back({range.first, range.last, word.word, is_silence(word)});
+  }
+  return frames;
+}
+
 std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word) {
   const auto it = std::find_if(words.begin(), words.end(), [word](const AlignedWord& w) { return w.word == word; });
   if (it == words.end()) return std::nullopt;

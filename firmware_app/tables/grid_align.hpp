@@ -2,6 +2,8 @@
 // in 1/25000 s, so 1000 units are one 25 fps video frame; "sil" and "sp" are silence.
 #pragma once
 
+#include "core/metrics.hpp"
+
 #include <filesystem>
 #include <optional>
 #include <set>
@@ -40,6 +42,9 @@ FrameRange frame_range(const AlignedWord& word);
 
 /// Frames overlapping any non-silence word.
 std::set<int> speech_frames(std::span<const AlignedWord> words);
+
+/// The words as closure_metric (core/metrics.hpp) takes them; they refer to `words`' text.
+std::vector<WordFrames> word_frames(std::span<const AlignedWord> words);
 
 /// The frame range of the first occurrence of `word`, or nullopt when absent.
 std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word);

@@ -16,7 +16,8 @@ std::string csv_field(std::string_view text) {
 
 std::string measures_csv_header(bool include_landmarks) {
   std::string header =
-      "frame,time_s,source,tracked,quality,width_2d,height_2d,width_fit,height_fit,width_3d,height_3d,protrusion_3d";
+      "frame,time_s,source,tracked,quality,width_2d,height_2d,width_fit,height_fit,width_3d,height_3d,protrusion_3d,"
+      "open,seal";
   for (std::string_view name : kVisemeNames) header += fmt::format(",viseme_{}", name);
   if (include_landmarks) {
     for (int i = 0; i < kNumLandmarks; ++i) header += fmt::format(",x{}", i);
@@ -30,11 +31,12 @@ void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, cons
   fmt::format_to(std::back_inserter(row), "{},{:.4f},{},", key.frame, key.time_s, csv_field(key.source));
   if (measures) {
     const MouthMeasures& m = *measures;
-    fmt::format_to(std::back_inserter(row), "1,{:.4f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}", m.quality,
-                   m.width_2d, m.height_2d, m.width_fit, m.height_fit, m.width_3d, m.height_3d, m.protrusion_3d);
+    fmt::format_to(std::back_inserter(row), "1,{:.4f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.4f}",
+                   m.quality, m.width_2d, m.height_2d, m.width_fit, m.height_fit, m.width_3d, m.height_3d,
+                   m.protrusion_3d, m.open, m.seal);
     for (const float weight : visemes) fmt::format_to(std::back_inserter(row), ",{:.4f}", weight);
   } else {
-    fmt::format_to(std::back_inserter(row), "0,,,,,,,,");
+    fmt::format_to(std::back_inserter(row), "0,,,,,,,,,,");
     for (int v = 0; v < kNumVisemes; ++v) row.push_back(',');
   }
   if (!landmarks) return;
