@@ -40,13 +40,13 @@ TEST(Calibration, RangesRunFromRestToTheRobustExtremes) {
   EXPECT_NEAR(profile.protrusion.max, 0.03, 0.002);
   // At rest everything but width reads 0; wide open reads 1.
   MouthMeasures rest;
-  rest.height_fit = 0.02;
+  rest.open = 0.02;
   rest.width_fit = 0.85;
   const DriveSignals at_rest = drive_signals(rest, {}, profile);
   EXPECT_NEAR(at_rest[Signal::kOpen], 0, 0.01);
   EXPECT_NEAR(at_rest[Signal::kWidth], 0.5, 0.03);
   MouthMeasures open = rest;
-  open.height_fit = 0.45;
+  open.open = 0.45;
   EXPECT_FLOAT_EQ(drive_signals(open, {}, profile)[Signal::kOpen], 1.0f);
 }
 
@@ -69,7 +69,7 @@ TEST(Calibration, RecentringFollowsAHelmetSlipAndKeepsTheSpans) {
   EXPECT_NEAR(moved.width.min - profile.width.min, 0.05, 0.005);
   EXPECT_NEAR(moved.protrusion.min, 0.01, 1e-9);
   MouthMeasures rest;
-  rest.height_fit = 0.05;
+  rest.open = 0.05;
   rest.width_fit = 0.9;
   rest.protrusion_3d = 0.01;
   EXPECT_NEAR(drive_signals(rest, {}, moved)[Signal::kOpen], 0, 0.01);
@@ -78,7 +78,7 @@ TEST(Calibration, RecentringFollowsAHelmetSlipAndKeepsTheSpans) {
 TEST(Calibration, CaptureKeepsAtMostItsCapacity) {
   CalibrationCapture capture;
   MouthMeasures m;
-  m.height_fit = 0.3;
+  m.open = 0.3;
   for (int i = 0; i < CalibrationCapture::kCapacity + 10; ++i) capture.add(m);
   EXPECT_EQ(capture.size(), CalibrationCapture::kCapacity);
   EXPECT_EQ(capture.samples()[0].open, 0.3);

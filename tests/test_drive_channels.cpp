@@ -217,7 +217,7 @@ TEST(Calibration, ScalesEachMeasureIntoItsRange) {
   profile.open = {0.1, 0.5};
   profile.width = {1.0, 0.8};  // inverted ranges are allowed
   MouthMeasures m;
-  m.height_fit = 0.3;
+  m.open = 0.3;
   m.width_fit = 0.85;
   m.protrusion_3d = -1;
   const std::array<float, 2> visemes{0.25f, 0.5f};
