@@ -3,12 +3,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <arpa/inet.h>
 #include <chrono>
 #include <cstring>
 #include <fcntl.h>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
@@ -124,6 +127,45 @@ class NotifySocket {
  private:
   std::filesystem::path path_;
   int fd_ = -1;
+};
+
+/// A loopback TCP port nothing listens on right now.
+inline int free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
+  socklen_t size = sizeof address;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
+  ::close(fd);
+  return ntohs(address.sin_port);
+}
+
+/// The systemd watchdog pings among the messages of a NotifySocket, and the longest gap
+/// between two of them.
+class WatchdogPings {
+ public:
+  using Clock = std::chrono::steady_clock;
+  /// Counts `message` when it is a ping.
+  void see(const std::string& message) {
+    if (message.find("WATCHDOG=1") == std::string::npos) return;
+    const Clock::time_point now = Clock::now();
+    if (count_++ > 0) take_gap(now);
+    last_ = now;
+  }
+  /// The gap from the last ping to now counts too (a daemon that stopped pinging).
+  void close() { take_gap(Clock::now()); }
+  int count() const { return count_; }
+  std::chrono::milliseconds longest_gap() const { return longest_; }
+
+ private:
+  void take_gap(Clock::time_point now) {
+    longest_ = std::max(longest_, std::chrono::duration_cast<std::chrono::milliseconds>(now - last_));
+  }
+  Clock::time_point last_{};
+  std::chrono::milliseconds longest_{0};
+  int count_ = 0;
 };
 
 }  // namespace lipdrive::test

@@ -29,19 +29,6 @@ using ::testing::HasSubstr;
 using test::kClip;
 constexpr int kWidthNeutral = 500;
 
-/// A loopback TCP port nobody listens on right now.
-int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
-  socklen_t size = sizeof address;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
-  ::close(fd);
-  return ntohs(address.sin_port);
-}
-
 /// The "median X ms, p99 Y ms" figures of the --stats line that starts with `prefix`.
 std::string stats_line(const std::string& log, const std::string& prefix) {
   const auto at = log.find(prefix);
@@ -54,7 +41,7 @@ TEST(DaemonOutputs, ModbusAndSerialFollowTheMouthAndEndNeutral) {
   const test::PtyPair line(dir.path() / "serial");
   test::PtyReader reader(line.b);
   const test::PtyPair rtu_line(dir.path() / "rtu");
-  const int port = free_port();
+  const int port = test::free_port();
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << test::sim_camera_at_60_fps()
                         << fmt::format(R"([status]

@@ -86,19 +86,6 @@ TEST_F(ReloadTest, ProcessorsOfTheSameConfigurationShareTheirFiles) {
   EXPECT_EQ(files.reads(), 2) << "the model and the predictor once each";
 }
 
-/// A TCP port nothing listens on right now.
-int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
-  socklen_t size = sizeof address;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
-  ::close(fd);
-  return ntohs(address.sin_port);
-}
-
 /// Modbus TCP masters reading the first registers as fast as the server answers, connecting
 /// again whenever the server goes away (as it does on every reload).
 class PollingClients {
@@ -137,7 +124,7 @@ class PollingClients {
 
 TEST_F(ReloadTest, ModbusPolledFlatOutThroughReloadsAndStop) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
-  const int port = free_port();
+  const int port = test::free_port();
   const fs::path config = dir_ / "lipdrive.toml";
   std::ofstream(config) << test::sim_camera_at_60_fps()
                         << fmt::format(R"([[channels]]
@@ -204,22 +191,16 @@ TEST_F(ReloadTest, TheWatchdogIsFedThroughReloads) {
 
   // Four reloads of the same file, then one to another predictor file, 1 s apart.
   constexpr int kReloads = 5;
-  Clock::time_point last_ping{}, next_reload = Clock::now() + 1s;
-  std::chrono::milliseconds worst_gap{0};
-  int pings = 0, reloads = 0;
+  Clock::time_point next_reload = Clock::now() + 1s;
+  test::WatchdogPings pings;
+  int reloads = 0;
   const auto end = [&] { return reloads == kReloads && count(daemon.log(), "running:") == kReloads + 1; };
   // Each reload builds a processor (face detector, fitter, viseme poses) and the last reads
   // the 95 MB predictor: seconds each on a loaded machine.
   const auto deadline = Clock::now() + 300s;
   Clock::time_point finished{};
   while (Clock::now() < deadline && (finished == Clock::time_point{} || Clock::now() < finished + 1s)) {
-    const std::string message = notify.receive(10ms);
-    if (message.find("WATCHDOG=1") != std::string::npos) {
-      const auto now = Clock::now();
-      if (pings++ > 0)
-        worst_gap = std::max(worst_gap, std::chrono::duration_cast<std::chrono::milliseconds>(now - last_ping));
-      last_ping = now;
-    }
+    pings.see(notify.receive(10ms));
     if (reloads < kReloads && Clock::now() >= next_reload && count(daemon.log(), "running:") == reloads + 1) {
       if (reloads == kReloads - 1) write_config(other_predictor);
       daemon.signal(SIGHUP);
@@ -235,13 +216,14 @@ TEST_F(ReloadTest, TheWatchdogIsFedThroughReloads) {
   const std::string log = daemon.log();
   EXPECT_EQ(count(log, "reloaded; restarting the pipeline"), kReloads) << log;
 
-  RecordProperty("watchdog_pings", pings);
-  RecordProperty("worst_watchdog_gap_ms", static_cast<int>(worst_gap.count()));
+  RecordProperty("watchdog_pings", pings.count());
+  RecordProperty("worst_watchdog_gap_ms", static_cast<int>(pings.longest_gap().count()));
   std::printf(
       "%d reloads (the last to another predictor file): %d watchdog pings, longest gap %lld ms (timeout %lld ms)\n",
-      kReloads, pings, static_cast<long long>(worst_gap.count()), static_cast<long long>(kWatchdog.count()));
-  EXPECT_GT(pings, 2 * kReloads);
-  EXPECT_LT(worst_gap, kWatchdog) << "systemd would have killed the daemon during a reload";
+      kReloads, pings.count(), static_cast<long long>(pings.longest_gap().count()),
+      static_cast<long long>(kWatchdog.count()));
+  EXPECT_GT(pings.count(), 2 * kReloads);
+  EXPECT_LT(pings.longest_gap(), kWatchdog) << "systemd would have killed the daemon during a reload";
 }
 
 }  // namespace
