@@ -12,10 +12,15 @@
 namespace lipdrive {
 namespace {
 
+// An alignment covers one take: an hour at 25 frames/s is far beyond any, and keeps every
+// frame number an int and the frame sets eval builds small.
+constexpr long kMaxAlignTime = 3600L * 25 * kAlignUnitsPerFrame;
+
 std::optional<long> parse_time(const std::string& text) {
   long value = 0;
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (error != std::errc{} || end != text.data() + text.size() || value < 0) return std::nullopt;
+  if (error != std::errc{} || end != text.data() + text.size() || value < 0 || value > kMaxAlignTime)
+    return std::nullopt;
   return value;
 }
 
@@ -44,8 +49,8 @@ std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path) {
     auto word = parse_line(line);
     if (!word) {
       throw CommandError(fmt::format("{}:{}: expected 'start end word' with integer times "
-                                     "0 <= start < end, got '{}'",
-                                     path.string(), line_number, line),
+                                     "0 <= start < end <= {} (an hour), got '{}'",
+                                     path.string(), line_number, kMaxAlignTime, line),
                          kExitDataError);
     }
     words.push_back(std::move(*word));
