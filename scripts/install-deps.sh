@@ -11,6 +11,7 @@ packages=(
   libtinyobjloader-dev libcpp-httplib-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   socat ffmpeg systemd clang-format
+  libola-dev ola liblo-dev liblo-tools libltc-dev
 )
 
 missing=()

@@ -129,9 +129,9 @@ class NotifySocket {
   int fd_ = -1;
 };
 
-/// A loopback TCP port nothing listens on right now.
-inline int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+/// A loopback port of `type` (SOCK_STREAM, SOCK_DGRAM) nothing uses right now.
+inline int free_port(int type = SOCK_STREAM) {
+  const int fd = ::socket(AF_INET, type, 0);
   sockaddr_in address{};
   address.sin_family = AF_INET;
   address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);

@@ -202,6 +202,47 @@ TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
   EXPECT_THAT(error(), HasSubstr(at + "performer.name: performer name"));
 }
 
+TEST_F(ConfigTest, DmxFootprintMistakesNameTheKey) {
+  const std::string at = file_.string() + ": key ";
+  const std::string channels = std::string(kJawChannel) + "[[channels]]\nname = \"lips\"\n";
+  write("", channels +
+                "[[outputs.dmx]]\nuniverse = 1\n[[outputs.dmx.channels]]\nname = \"jaw\"\nbits = 16\n"
+                "[[outputs.dmx.channels]]\nname = \"lips\"\n");
+  const Config config = load_config(file_);
+  ASSERT_EQ(config.outputs.dmx.size(), 1u);
+  const auto& footprint = config.outputs.dmx[0].footprint;
+  ASSERT_EQ(footprint.size(), 2u);
+  EXPECT_EQ(footprint[0].address, 1);
+  EXPECT_TRUE(footprint[0].sixteen_bit);
+  EXPECT_EQ(footprint[1].address, 3) << "the next channel follows the 16-bit one's fine slot";
+  EXPECT_EQ(footprint[1].channel_index, 1);
+
+  write("", channels + "[[outputs.dmx]]\nuniverse = 0\n[[outputs.dmx.channels]]\nname = \"jaw\"\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[0].universe: must be between 1 and 63999, got 0"));
+  write("", channels + "[[outputs.dmx]]\nuniverse = 64000\n[[outputs.dmx.channels]]\nname = \"jaw\"\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[0].universe: must be between 1 and 63999, got 64000"));
+  write("", channels +
+                "[[outputs.dmx]]\n[[outputs.dmx.channels]]\nname = \"jaw\"\nbits = 16\n"
+                "[[outputs.dmx.channels]]\nname = \"lips\"\naddress = 2\n");
+  EXPECT_THAT(error(), AllOf(HasSubstr(at + "outputs.dmx[0].channels[1].address: channel \"lips\" at address 2 "
+                                            "collides with channel \"jaw\" (addresses 1..2)")));
+  write("", channels +
+                "[[outputs.dmx]]\n[[outputs.dmx.channels]]\nname = \"jaw\"\naddress = 5\n"
+                "[[outputs.dmx]]\n[[outputs.dmx.channels]]\nname = \"lips\"\naddress = 5\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[1].channels[0].address: channel \"lips\" at address 5 collides"))
+      << "two outputs on one universe";
+  write("", channels + "[[outputs.dmx]]\nstart_address = 512\n[[outputs.dmx.channels]]\nname = \"jaw\"\nbits = 16\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[0].channels[0].address: a 16-bit channel needs two slots"));
+  write("", channels + "[[outputs.dmx]]\n[[outputs.dmx.channels]]\nname = \"jaw\"\nbits = 12\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[0].channels[0].bits: must be 8 or 16, got 12"));
+  write("", channels + "[[outputs.dmx]]\n[[outputs.dmx.channels]]\nname = \"teeth\"\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[0].channels[0].name: no channel named \"teeth\""));
+  write("", channels + "[[outputs.dmx]]\nrate_hz = 60\n[[outputs.dmx.channels]]\nname = \"jaw\"\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[0].rate_hz: must be between 1 and 44, got 60"));
+  write("", channels + "[[outputs.dmx]]\n");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.dmx[0].channels: needs at least one"));
+}
+
 TEST_F(ConfigTest, ReferenceFileIsValid) {
   // The shipped file: default model and the default clip next to the binary.
   const fs::path reference = fs::path(LIPDRIVE_SOURCE_DIR) / "config" / "lipdrive.toml";

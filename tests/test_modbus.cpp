@@ -532,24 +532,24 @@ TEST(ModbusClient, WritesChannelsAndRidesOutADeadSlave) {
   EXPECT_THAT(output.describe(), HasSubstr("registers 10..11"));
   Feeder feeder(output);
 
-  ASSERT_TRUE(wait_for([&] { return slave.holding(10) == 1234 && slave.holding(11) > 0 && output.writes_ok() > 10; }))
+  ASSERT_TRUE(wait_for([&] { return slave.holding(10) == 1234 && slave.holding(11) > 0 && output.sends_ok() > 10; }))
       << "the channels arrive in the configured order";
   EXPECT_TRUE(output.healthy());
-  EXPECT_EQ(output.writes_failed(), 0u);
+  EXPECT_EQ(output.sends_failed(), 0u);
   // At most rate_hz: 0.5 s of feeding at 200 frames/s gives about 25 writes.
-  const std::uint64_t ok_before = output.writes_ok();
+  const std::uint64_t ok_before = output.sends_ok();
   std::this_thread::sleep_for(500ms);
-  EXPECT_LE(output.writes_ok() - ok_before, 30u);
+  EXPECT_LE(output.sends_ok() - ok_before, 30u);
   EXPECT_GT(output.wire_latency()->count(), 0u);
 
   slave.set_answering(false);
-  EXPECT_TRUE(wait_for([&] { return output.writes_failed() >= 3 && !output.healthy(); }))
-      << "failed " << output.writes_failed();
+  EXPECT_TRUE(wait_for([&] { return output.sends_failed() >= 3 && !output.healthy(); }))
+      << "failed " << output.sends_failed();
   const std::uint16_t stale = slave.holding(11);
 
   slave.set_answering(true);
-  const std::uint64_t ok_after_outage = output.writes_ok();
-  EXPECT_TRUE(wait_for([&] { return output.writes_ok() > ok_after_outage + 5 && output.healthy(); }));
+  const std::uint64_t ok_after_outage = output.sends_ok();
+  EXPECT_TRUE(wait_for([&] { return output.sends_ok() > ok_after_outage + 5 && output.healthy(); }));
   EXPECT_TRUE(wait_for([&] { return slave.holding(11) != stale; })) << "new values arrive again";
   EXPECT_LT(feeder.slowest_publish_ns(), 5'000'000) << "publish() never waits for the slave";
   std::printf("capture->wire latency median %.2f ms, p99 %.2f ms over %llu frames\n",

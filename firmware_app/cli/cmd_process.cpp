@@ -52,7 +52,24 @@ struct ProcessOptions {
   std::filesystem::path side;         // side-camera recording, frame for frame with the input
   std::string side_facing = "right";  // where the face looks in the side view
   int side_neutral_frames = 15;       // its first frames: the neutral pose the reference is fixed on
+  std::string timecode;               // the first frame's timecode: adds the timecode column
+  double timecode_fps = 25;
 };
+
+/// --timecode START at --timecode-fps: the start's frame number and the rate; nullopt without.
+std::optional<std::pair<std::int32_t, TimecodeRate>> timecode_start(const ProcessOptions& options) {
+  if (options.timecode.empty()) return std::nullopt;
+  const auto rate = rate_from_fps(options.timecode_fps);
+  if (!rate)
+    throw CLI::ValidationError("--timecode-fps",
+                               fmt::format("must be 24, 25, 29.97 (drop-frame) or 30, got {}", options.timecode_fps));
+  const auto label = parse_timecode(options.timecode);
+  const auto frame = label ? frame_from_timecode(*label, *rate) : std::nullopt;
+  if (!frame)
+    throw CLI::ValidationError("--timecode", fmt::format("\"{}\" is not a timecode at {} fps (HH:MM:SS:FF)",
+                                                         options.timecode, rate_name(*rate)));
+  return std::pair{*frame, *rate};
+}
 
 SimulatedCamera open_input(const std::filesystem::path& input);
 
@@ -237,6 +254,7 @@ std::unique_ptr<FrameProcessor> processor_for(const ProcessOptions& options) {
 }
 
 void run_process(const ProcessOptions& options) {
+  const auto timecode = timecode_start(options);
   SimulatedCamera camera = open_input(options.input);
   const std::unique_ptr<FrameProcessor> processor = processor_for(options);
 
@@ -250,7 +268,11 @@ void run_process(const ProcessOptions& options) {
   std::ostream& out = options.out.empty() ? std::cout : file;
   std::optional<SideInput> side;
   if (!options.side.empty()) side.emplace(options);
-  out << measures_csv_header(options.include_landmarks) << (side ? ",protrusion_side" : "") << '\n';
+  if (timecode)
+    out << "# timecode_start " << format_frame(timecode->first, timecode->second).view() << " at "
+        << rate_name(timecode->second) << " fps\n";
+  out << measures_csv_header(options.include_landmarks) << (side ? ",protrusion_side" : "")
+      << (timecode ? ",timecode" : "") << '\n';
 
   const bool independent = camera.independent_frames();
   const bool progress = ::isatty(STDERR_FILENO) == 1;
@@ -295,6 +317,13 @@ void run_process(const ProcessOptions& options) {
       const std::optional<double> protrusion = side->next();
       fmt::format_to(std::back_inserter(row), ",");
       if (protrusion) fmt::format_to(std::back_inserter(row), "{:.5f}", *protrusion);
+    }
+    if (timecode) {
+      // The frame's place in the recording from the start's timecode, like the sound
+      // department's recorder stamping the same take.
+      row.push_back(',');
+      append_timecode(row, frame_after(timecode->first, std::llround(frame.media_time_s * 1e9), timecode->second),
+                      timecode->second);
     }
     row.push_back('\n');
     out.write(row.data(), static_cast<std::streamsize>(row.size()));
@@ -346,6 +375,10 @@ void add_process_command(CLI::App& app) {
   cmd->add_option("--side-neutral-frames", options->side_neutral_frames,
                   "first side frames at rest that fix the reference line")
       ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  cmd->add_option("--timecode", options->timecode,
+                  "timecode of the first frame (HH:MM:SS:FF): adds a timecode column, the recording's time from it");
+  cmd->add_option("--timecode-fps", options->timecode_fps, "timecode rate: 24, 25, 29.97 (drop-frame) or 30")
       ->capture_default_str();
   cmd->callback([options] { run_process(*options); });
 }

@@ -1,6 +1,8 @@
 #include "firmware_app/config/config.hpp"
 
+#include "core/osc_addresses.hpp"
 #include "drivers/serial_port.hpp"
+#include "drivers/udp_socket.hpp"
 #include "firmware_app/config/paths.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 
@@ -354,6 +356,132 @@ ModbusEndpoint read_modbus_link(Section& section) {
   return link;
 }
 
+/// [[outputs.dmx]]: the channels' slots follow each other from start_address unless a
+/// channel gives its own address; no slot may be used twice in one universe, across outputs
+/// too.
+void read_dmx_outputs(std::vector<Section> outputs, Config& config) {
+  for (Section& dmx : outputs) {
+    DmxOutputOptions options;
+    options.universe = static_cast<unsigned>(dmx.integer("universe", 1, 1, 63999));
+    int next = dmx.integer("start_address", 1, 1, kDmxUniverseSlots);
+    options.rate_hz = dmx.integer("rate_hz", options.rate_hz, 1, 44);
+    options.priority = dmx.integer("priority", options.priority, 0, 200);
+    options.rpc_port = dmx.integer("rpc_port", options.rpc_port, 1, 65535);
+    options.max_backoff_ms = dmx.integer("max_backoff_ms", options.max_backoff_ms, 10, 600'000);
+    std::vector<Section> channels = dmx.tables("channels");
+    if (channels.empty()) dmx.fail("channels", "needs at least one [[outputs.dmx.channels]] entry");
+    for (Section& channel : channels) {
+      DmxSlotSpec spec;
+      spec.channel = channel.string("name", "");
+      const auto index = find_channel(config.channels, spec.channel);
+      if (!index) channel.fail("name", fmt::format("no channel named \"{}\" (see [[channels]])", spec.channel));
+      const ChannelSpec& drive = config.channels[static_cast<std::size_t>(*index)];
+      spec.channel_index = *index;
+      spec.range_min = drive.out_min;
+      spec.range_max = drive.out_max;
+      if (spec.range_min == spec.range_max)
+        channel.fail("name", fmt::format("channel \"{}\" has out_min = out_max: nothing to send", spec.channel));
+      const int bits = channel.integer("bits", 8, 8, 16);
+      if (bits != 8 && bits != 16) channel.fail("bits", fmt::format("must be 8 or 16, got {}", bits));
+      spec.sixteen_bit = bits == 16;
+      spec.address = channel.integer("address", next, 1, kDmxUniverseSlots);
+      next = spec.last_address() + 1;
+      channel.reject_unknown_keys();
+      options.footprint.push_back(spec);
+    }
+    // This output's slots after those of the outputs before it on the same universe.
+    std::vector<DmxSlotSpec> universe;
+    for (const DmxOutputOptions& before : config.outputs.dmx)
+      if (before.universe == options.universe)
+        universe.insert(universe.end(), before.footprint.begin(), before.footprint.end());
+    const std::size_t earlier = universe.size();
+    universe.insert(universe.end(), options.footprint.begin(), options.footprint.end());
+    if (const auto error = check_footprint(universe)) {
+      // The earlier outputs passed alone: the entry at fault is one of this output's.
+      channels[error->index - earlier].fail("address", error->reason);
+    }
+    dmx.reject_unknown_keys();
+    config.outputs.dmx.push_back(std::move(options));
+  }
+}
+
+/// The host must resolve now: a typo shows at check-config, not as silence on the show network.
+void check_resolves(Section& section, std::string_view key, const std::string& host, int port) {
+  try {
+    resolve_udp(host, port);
+  } catch (const UdpError& e) {
+    section.fail(key, e.what());
+  }
+}
+
+void read_osc_outputs(std::vector<Section> outputs, Config& config) {
+  for (Section& osc : outputs) {
+    OscOutputOptions options;
+    options.host = osc.string("host", options.host);
+    options.port = osc.integer("port", options.port, 1, 65535);
+    check_resolves(osc, "host", options.host, options.port);
+    options.channels = osc.strings("channels");
+    check_channel_names(osc, "channels", options.channels, config);
+    std::vector<std::string> names = options.channels;
+    if (names.empty())
+      for (const ChannelSpec& channel : config.channels) names.push_back(channel.name);
+    for (const std::string& name : names) {
+      if (!osc::is_address_part(name))
+        osc.fail("channels", fmt::format("channel \"{}\" cannot be part of an OSC address (no spaces or # * , / ? [ ] "
+                                         "{{ }})",
+                                         name));
+      if (name == "frame" || name == "status" || name == "timecode")
+        osc.fail("channels", fmt::format("channel \"{}\" would hide /lipdrive/{}; rename the channel", name, name));
+    }
+    options.rate_hz = osc.integer("rate_hz", options.rate_hz, 1, 1000);
+    options.max_backoff_ms = osc.integer("max_backoff_ms", options.max_backoff_ms, 10, 600'000);
+    osc.reject_unknown_keys();
+    config.outputs.osc.push_back(std::move(options));
+  }
+}
+
+void read_timecode(Section timecode, Config& config) {
+  Config::Timecode& t = config.timecode;
+  const std::string source = timecode.one_of("source", "none", {"none", "clock", "ltc"});
+  t.source = source == "none"    ? Config::Timecode::Source::kNone
+             : source == "clock" ? Config::Timecode::Source::kClock
+                                 : Config::Timecode::Source::kLtc;
+  const double fps = timecode.number("fps", 25, 1, 120);
+  if (const auto rate = rate_from_fps(fps))
+    t.rate = *rate;
+  else
+    timecode.fail("fps", fmt::format("must be 24, 25, 29.97 (drop-frame) or 30, got {}", fps));
+  // Where LTC comes from; this build decodes it from the generated signal only.
+  timecode.one_of("ltc_input", "sim", {"sim"});
+  const std::string start = timecode.string("sim_start", "10:00:00:00");
+  const auto label = parse_timecode(start);
+  if (!label || !frame_from_timecode(*label, t.rate))
+    timecode.fail("sim_start",
+                  fmt::format("\"{}\" is not a timecode at {} fps (HH:MM:SS:FF)", start, rate_name(t.rate)));
+  t.sim.start = *label;
+  t.sim.rate = t.rate;
+  const std::string signal = timecode.one_of("sim_signal", "ltc", {"ltc", "silence", "noise"});
+  t.sim.signal = signal == "ltc"       ? SimulatedLtcSignal::kLtc
+                 : signal == "silence" ? SimulatedLtcSignal::kSilence
+                                       : SimulatedLtcSignal::kNoise;
+  const double sim_fps = timecode.number("sim_fps", fps, 1, 120);
+  if (const auto rate = rate_from_fps(sim_fps))
+    t.sim.rate = *rate;
+  else
+    timecode.fail("sim_fps", fmt::format("must be 24, 25, 29.97 (drop-frame) or 30, got {}", sim_fps));
+  t.sim.sample_rate = timecode.integer("sample_rate", t.sim.sample_rate, 8000, 192'000);
+  timecode.reject_unknown_keys();
+}
+
+void read_osc_control(Section control, Config& config) {
+  Config::OscControl& c = config.osc_control;
+  c.enabled = control.boolean("enabled", c.enabled);
+  c.address = control.string("address", c.address);
+  c.port = control.integer("port", c.port, 1, 65535);
+  if (c.enabled) check_resolves(control, "address", c.address, c.port);
+  control.reject_unknown_keys();
+}
+
 void read_outputs(Section outputs, Config& config) {
   for (Section& server : outputs.tables("modbus_server")) {
     ModbusServerOptions options;
@@ -394,6 +522,8 @@ void read_outputs(Section outputs, Config& config) {
     serial.reject_unknown_keys();
     config.outputs.serial.push_back(options);
   }
+  read_dmx_outputs(outputs.tables("dmx"), config);
+  read_osc_outputs(outputs.tables("osc"), config);
   Section gpio = outputs.table("gpio");
   GpioOptions& g = config.outputs.gpio;
   g.enabled = gpio.boolean("enabled", g.enabled);
@@ -434,6 +564,8 @@ Config load_config(const fs::path& file) {
   read_safety(top.table("safety"), config);
   read_channels(top.tables("channels"), config);
   read_outputs(top.table("outputs"), config);
+  read_osc_control(top.table("osc_control"), config);
+  read_timecode(top.table("timecode"), config);
   top.reject_unknown_keys();
   return config;
 }

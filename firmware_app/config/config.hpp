@@ -5,15 +5,19 @@
 // device) all throw ConfigError, so a typo never silently falls back to a default.
 #pragma once
 
+#include "core/dmx_footprint.hpp"
 #include "core/drive_channels.hpp"
 #include "core/fitting.hpp"
 #include "core/landmarks.hpp"
 #include "core/side_profile.hpp"
+#include "core/timecode.hpp"
 #include "drivers/modbus_link.hpp"
+#include "drivers/ola_client.hpp"
 #include "drivers/serial_port.hpp"
 #include "drivers/v4l2_camera.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/paths.hpp"
+#include "sim/ltc_generator.hpp"
 #include "sim/simulated_camera.hpp"
 
 #include <spdlog/common.h>
@@ -65,6 +69,25 @@ struct SerialOutputOptions {
   };
   std::vector<Servo> servos;
   int max_backoff_ms = 5000;  // reopen delay doubles up to this while the port is gone
+};
+
+/// [[outputs.dmx]]: channels as slots of a DMX512 universe through olad (docs/dmx.md).
+struct DmxOutputOptions {
+  unsigned universe = 1;               // olad's universe number, 1..63999 (the sACN range)
+  std::vector<DmxSlotSpec> footprint;  // checked: inside the universe, no slot twice
+  int rate_hz = 44;                    // frames per second at most, 1..44 (a full DMX512 universe)
+  int priority = 100;                  // olad's source priority, 0..200
+  int rpc_port = kOlaDefaultRpcPort;   // olad's RPC port on 127.0.0.1
+  int max_backoff_ms = 1000;           // reconnect delay doubles up to this while olad is away
+};
+
+/// [[outputs.osc]]: every drive frame as one OSC bundle (docs/osc.md).
+struct OscOutputOptions {
+  std::string host = "127.0.0.1";  // a name or a numeric address; resolved when loaded
+  int port = 9000;
+  std::vector<std::string> channels;  // sent as /lipdrive/<channel>; empty = all
+  int rate_hz = 200;                  // bundles per second at most (the newest frame wins)
+  int max_backoff_ms = 1000;          // retry delay doubles up to this while sends fail
 };
 
 /// [outputs.gpio]: status and fault lines, calibrate and record buttons (libgpiod).
@@ -122,10 +145,29 @@ struct Config {
   SafetySettings safety;
   std::vector<ChannelSpec> channels;
 
+  /// [timecode]: what every frame is stamped with (docs/timecode.md).
+  struct Timecode {
+    enum class Source { kNone, kClock, kLtc };
+    Source source = Source::kNone;
+    TimecodeRate rate = TimecodeRate::k25;
+    /// LTC: the generated signal of sim/ltc_generator.hpp (the only LTC input of this build:
+    /// the ALSA capture driver is not part of it yet).
+    SimulatedLtcOptions sim{.sample_rate = 48000, .start = {10, 0, 0, 0}};
+  } timecode;
+
+  /// [osc_control]: remote commands over OSC (docs/osc.md).
+  struct OscControl {
+    bool enabled = false;
+    std::string address = "127.0.0.1";  // the interface bound; "0.0.0.0" for every one
+    int port = 8000;
+  } osc_control;
+
   struct Outputs {
     std::vector<ModbusServerOptions> modbus_servers;
     std::vector<ModbusClientOptions> modbus_clients;
     std::vector<SerialOutputOptions> serial;
+    std::vector<DmxOutputOptions> dmx;
+    std::vector<OscOutputOptions> osc;
     GpioOptions gpio;
   } outputs;
 };

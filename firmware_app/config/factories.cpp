@@ -5,6 +5,7 @@
 #include "drivers/libcamera_camera.hpp"
 #endif
 #include "firmware_app/cli/command_error.hpp"
+#include "sim/ltc_generator.hpp"
 #include "sim/simulated_camera.hpp"
 
 #include <fmt/format.h>
@@ -43,6 +44,17 @@ std::unique_ptr<SideCamera> make_side_camera(const Config& config) {
   return std::make_unique<SideCamera>(make_camera(*config.side_camera, config, "side_camera"),
                                       SideProfileSettings{.facing = config.side_facing},
                                       config.performer.neutral_frames);
+}
+
+std::unique_ptr<TimecodeSource> make_timecode(const Config& config) {
+  const Config::Timecode& timecode = config.timecode;
+  switch (timecode.source) {
+    case Config::Timecode::Source::kNone: return nullptr;
+    case Config::Timecode::Source::kClock: return std::make_unique<ClockTimecode>(timecode.rate);
+    case Config::Timecode::Source::kLtc:
+      return std::make_unique<LtcTimecode>(std::make_unique<SimulatedLtcAudio>(timecode.sim), timecode.rate);
+  }
+  return nullptr;
 }
 
 std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles& files) {

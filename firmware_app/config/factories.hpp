@@ -8,6 +8,7 @@
 #include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/daemon/side_camera.hpp"
+#include "firmware_app/daemon/timecode_source.hpp"
 
 #include <memory>
 
@@ -18,6 +19,9 @@ std::unique_ptr<FrameSource> make_source(const Config& config);
 
 /// The [side_camera], or nullptr when it is not enabled.
 std::unique_ptr<SideCamera> make_side_camera(const Config& config);
+
+/// The [timecode] source, or nullptr when frames are not stamped.
+std::unique_ptr<TimecodeSource> make_timecode(const Config& config);
 
 /// Model + predictor + tracker + fitter from [model] and [tracker], the files from `files`
 /// (shared with earlier processors when unchanged). Throws CommandError: a missing model or

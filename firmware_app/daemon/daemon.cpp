@@ -48,19 +48,33 @@ Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const D
   settings.neutral_frames = config_.performer.neutral_frames;
   settings.model_mismatch = model_mismatch(config_, profile_, files);
   std::unique_ptr<FrameSource> source = make_source(config_);
-  recorder_ = std::make_unique<TakeRecorder>(source->describe(),
-                                             std::chrono::milliseconds(config_.recording.flush_interval_ms));
+  timecode_ = make_timecode(config_);
+  recorder_ =
+      std::make_unique<TakeRecorder>(source->describe(), std::chrono::milliseconds(config_.recording.flush_interval_ms),
+                                     timecode_ ? std::optional<TimecodeRate>(timecode_->rate()) : std::nullopt);
   pipeline_ = std::make_unique<Pipeline>(std::move(source), std::move(processor), settings, control_);
   if (auto side = make_side_camera(config_)) {
     spdlog::info("side camera: {}", side->describe());
     pipeline_->set_side_camera(std::move(side));
   }
   pipeline_->set_recorder(*recorder_);
+  if (timecode_) {
+    pipeline_->set_timecode(*timecode_);
+    spdlog::info("timecode: {}", timecode_->describe());
+  }
   pipeline_->set_profile(profile_);
   outputs_ = make_outputs(config_, control_);
   for (const auto& output : outputs_) {
     pipeline_->add_output(*output);
     spdlog::info("output: {}", output->describe());
+  }
+  if (config_.osc_control.enabled) {
+    try {
+      osc_control_ = std::make_unique<OscControl>(config_.osc_control.address, config_.osc_control.port, control_);
+    } catch (const UdpError& e) {
+      throw ConfigError(fmt::format("{}: key osc_control.port: {}", config_.file.string(), e.what()));
+    }
+    spdlog::info("{}", osc_control_->describe());
   }
   if (options.record || config_.recording.start) recorder_->start(take_file_name(config_.recording.dir));
   pipeline_->start();
@@ -71,7 +85,8 @@ Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const D
 void Daemon::poll() {
   const int record = control_.recording_request.exchange(-1, std::memory_order_relaxed);
   if (record == 1 && !recorder_->recording()) {
-    recorder_->start(take_file_name(config_.recording.dir));
+    const std::optional<std::string> name = osc_control_ ? osc_control_->next_take_name() : std::nullopt;
+    recorder_->start(take_file_name(config_.recording.dir, name.value_or("")));
   } else if (record == 0 && recorder_->recording()) {
     recorder_->stop();
   }
@@ -108,12 +123,19 @@ void Daemon::report_status() {
                 latest.side_used ? "side camera" : "3D fit", latest.signals[Signal::kOpen],
                 latest.signals[Signal::kWidth], latest.signals[Signal::kProtrusion])
           : std::string("not tracked");
-  std::string failing;
+  std::string warnings;
   for (const auto& output : outputs_)
-    if (!output->healthy()) failing += fmt::format(", {} failing", output->describe());
-  const std::string line = fmt::format("{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, {}, {}x{}, dropped {}{}{}",
-                                       fps, s.processed_median_ms, s.processed_p99_ms, mouth, latest.width,
-                                       latest.height, s.dropped, s.connected ? "" : ", camera disconnected", failing);
+    if (!output->healthy()) warnings += fmt::format(", {} failing", output->describe());
+  if (timecode_)
+    if (const std::string problem = timecode_->problem(); !problem.empty()) warnings += ", " + problem;
+  const std::string timecode =
+      latest.timecode >= 0 && timecode_
+          ? fmt::format(", timecode {}", format_frame(latest.timecode, timecode_->rate()).view())
+          : std::string();
+  const std::string line =
+      fmt::format("{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, {}, {}x{}, dropped {}{}{}{}", fps,
+                  s.processed_median_ms, s.processed_p99_ms, mouth, latest.width, latest.height, s.dropped, timecode,
+                  s.connected ? "" : ", camera disconnected", warnings);
   spdlog::info("{}", line);
   sd_notifyf(0, "STATUS=%s", line.c_str());
 }

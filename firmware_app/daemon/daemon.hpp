@@ -12,8 +12,10 @@
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
+#include "firmware_app/daemon/osc_control.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
+#include "firmware_app/daemon/timecode_source.hpp"
 #include "firmware_app/outputs/output.hpp"
 
 #include <chrono>
@@ -60,8 +62,11 @@ class Daemon {
  private:
   Config config_;
   PerformerProfile profile_;
-  DriveControl control_;  // written by the Modbus server's thread and the GPIO buttons, read by the pipeline
+  DriveControl
+      control_;  // written by the Modbus server's thread, the GPIO buttons and the OSC control, read by the pipeline
+  std::unique_ptr<TimecodeSource> timecode_;  // read by the pipeline's processing thread
   std::unique_ptr<TakeRecorder> recorder_;
+  std::unique_ptr<OscControl> osc_control_;       // its thread writes control_
   std::vector<std::unique_ptr<Output>> outputs_;  // their threads use control_
   std::unique_ptr<Pipeline> pipeline_;            // its threads use all of the above
   std::uint32_t saved_profile_version_ = 0;

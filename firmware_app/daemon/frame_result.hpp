@@ -23,6 +23,7 @@ struct FrameResult {
   bool side_used = false;      // protrusion came from the side camera (protrusion_side)
   double protrusion_side = 0;  // side-view protrusion over the nose length, when side_used
   int width = 0, height = 0;   // frame size in pixels
+  std::int32_t timecode = -1;  // frame number (core/timecode.hpp) at capture; -1: not stamped
 };
 
 /// Sees every result on the processing thread, in order (the take recorder, tests). push()

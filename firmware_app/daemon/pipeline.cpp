@@ -78,6 +78,7 @@ void Pipeline::process(const CapturedFrame& frame) {
   result.sequence = frame.sequence;
   result.capture_time_ns = frame.capture_time_ns;
   result.media_time_s = frame.media_time_s;
+  if (timecode_) result.timecode = timecode_->frame_at(frame.capture_time_ns).value_or(-1);
   result.tracked = measurement.tracked;
   if (measurement.tracked) {
     result.measures = measurement.measures;
@@ -191,6 +192,9 @@ void Pipeline::output_loop() {
     frame.status = status(tracked, result.side_used, connected, enabled);
     frame.sequence = result.sequence;
     frame.capture_time_ns = result.capture_time_ns;
+    frame.signals = tracked ? result.signals : DriveSignals{};
+    frame.timecode = version > 0 ? result.timecode : -1;  // before the first result the seqlock holds zeros
+    if (timecode_) frame.timecode_rate = timecode_->rate();
     frame.latency_ms = static_cast<float>(ms(result.processed_time_ns - result.capture_time_ns));
     fill(frame, now);
     for (Output* output : outputs_) output->publish(frame);
@@ -198,6 +202,7 @@ void Pipeline::output_loop() {
   // The last thing every output sees: the neutral pose.
   channels_.reset_to_neutral();
   frame.new_result = false;
+  frame.signals = DriveSignals{};
   frame.status = status(false, false, connected, enabled);
   fill(frame, monotonic_ns());
   for (Output* output : outputs_) output->publish_last(frame);

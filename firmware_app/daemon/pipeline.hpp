@@ -27,6 +27,7 @@
 #include "firmware_app/daemon/latest_frame.hpp"
 #include "firmware_app/daemon/side_camera.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
+#include "firmware_app/daemon/timecode_source.hpp"
 #include "firmware_app/outputs/output.hpp"
 
 #include <atomic>
@@ -87,6 +88,8 @@ class Pipeline {
   }
   /// The side camera, paired with front frames by capture time.
   void set_side_camera(std::unique_ptr<SideCamera> side) { side_ = std::move(side); }
+  /// The timecode every frame is stamped with (processing thread).
+  void set_timecode(const TimecodeSource& timecode) { timecode_ = &timecode; }
   /// The performer profile the processing thread applies.
   void set_profile(const PerformerProfile& profile);
 
@@ -132,6 +135,7 @@ class Pipeline {
   std::vector<Output*> outputs_;
   std::vector<ResultSink*> sinks_;
   const TakeRecorder* recorder_ = nullptr;
+  const TimecodeSource* timecode_ = nullptr;
 
   Published<FrameResult> results_;
   Published<DriveFrame> drive_frames_;

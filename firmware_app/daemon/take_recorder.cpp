@@ -13,21 +13,29 @@
 
 namespace lipdrive {
 
-std::filesystem::path take_file_name(const std::filesystem::path& dir) {
-  const std::time_t now = std::time(nullptr);
-  std::tm local{};
-  ::localtime_r(&now, &local);
-  char stamp[32];
-  std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", &local);
-  // Two takes in one second (a quick reload) must not overwrite each other.
-  std::filesystem::path file = dir / fmt::format("take-{}.csv", stamp);
+std::filesystem::path take_file_name(const std::filesystem::path& dir, const std::string& name) {
+  std::string stem = name;
+  if (stem.empty()) {
+    const std::time_t now = std::time(nullptr);
+    std::tm local{};
+    ::localtime_r(&now, &local);
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", &local);
+    stem = fmt::format("take-{}", stamp);
+  }
+  // Two takes in one second (a quick reload) or under one slate must not overwrite each other.
+  std::filesystem::path file = dir / fmt::format("{}.csv", stem);
   std::error_code ec;
-  for (int n = 2; std::filesystem::exists(file, ec); ++n) file = dir / fmt::format("take-{}-{}.csv", stamp, n);
+  for (int n = 2; std::filesystem::exists(file, ec); ++n) file = dir / fmt::format("{}-{}.csv", stem, n);
   return file;
 }
 
-TakeRecorder::TakeRecorder(std::string source, std::chrono::milliseconds flush_interval)
-    : source_(std::move(source)), flush_interval_(flush_interval), thread_(&TakeRecorder::run, this) {}
+TakeRecorder::TakeRecorder(std::string source, std::chrono::milliseconds flush_interval,
+                           std::optional<TimecodeRate> timecode_rate)
+    : source_(std::move(source)),
+      flush_interval_(flush_interval),
+      timecode_rate_(timecode_rate),
+      thread_(&TakeRecorder::run, this) {}
 
 TakeRecorder::~TakeRecorder() {
   active_ = false;
@@ -116,12 +124,22 @@ void TakeRecorder::open_take(const std::filesystem::path& file) {
     return;
   }
   last_sync_ = std::chrono::steady_clock::now();
-  const std::string header = measures_csv_header(false) + ",capture_time_ns\n";
-  if (write_all(header.data(), header.size())) spdlog::info("recording a take to {}", file.string());
+  spdlog::info("recording a take to {}", file.string());
+  // With a timecode the header names the first row's, so it waits for that row.
+  header_pending_ = true;
+  if (timecode_rate_) return;
+  lines_.clear();
+  append_header(nullptr);
+  write_all(lines_.data(), lines_.size());
 }
 
 void TakeRecorder::close_take() {
   if (!fd_.valid()) return;
+  if (header_pending_) {
+    lines_.clear();
+    append_header(nullptr);
+    write_all(lines_.data(), lines_.size());
+  }
   ::fdatasync(fd_.get());
   fd_.reset();
   const std::uint64_t lost = rows_lost_.exchange(0);
@@ -136,15 +154,35 @@ void TakeRecorder::drain() {
   std::uint64_t tail = tail_.load(std::memory_order_relaxed);
   if (head == tail) return;
   lines_.clear();
+  if (fd_.valid() && header_pending_) append_header(&ring_[tail % kRingSize]);
   for (; fd_.valid() && tail != head; ++tail) {
     const FrameResult& r = ring_[tail % kRingSize];
     append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr, r.visemes,
                             nullptr);
-    fmt::format_to(std::back_inserter(lines_), ",{}\n", r.capture_time_ns);
+    fmt::format_to(std::back_inserter(lines_), ",{}", r.capture_time_ns);
+    if (timecode_rate_) {
+      lines_.push_back(',');
+      if (r.timecode >= 0) append_timecode(lines_, r.timecode, *timecode_rate_);
+    }
+    lines_.push_back('\n');
   }
   // Without an open take the rows are discarded.
   tail_.store(head, std::memory_order_release);
   if (fd_.valid()) write_all(lines_.data(), lines_.size());
+}
+
+void TakeRecorder::append_header(const FrameResult* first) {
+  header_pending_ = false;
+  if (timecode_rate_) {
+    fmt::format_to(std::back_inserter(lines_), "# timecode_start ");
+    if (first && first->timecode >= 0)
+      append_timecode(lines_, first->timecode, *timecode_rate_);
+    else
+      fmt::format_to(std::back_inserter(lines_), "none");
+    fmt::format_to(std::back_inserter(lines_), " at {} fps\n", rate_name(*timecode_rate_));
+  }
+  fmt::format_to(std::back_inserter(lines_), "{},capture_time_ns{}\n", measures_csv_header(false),
+                 timecode_rate_ ? ",timecode" : "");
 }
 
 bool TakeRecorder::write_all(const char* data, std::size_t size) {

@@ -1,6 +1,8 @@
 // Take recording: every processed frame as one CSV row (the columns of `lipdrive process`
-// plus capture_time_ns), written by a thread of its own so that slow or failing storage
-// never holds up the pipeline or the outputs.
+// plus capture_time_ns, and the frame's timecode when a timecode source is configured; the
+// take then begins with a comment line naming the timecode of its first frame), written by a
+// thread of its own so that slow or failing storage never holds up the pipeline or the
+// outputs.
 //
 // The processing thread hands results over through a fixed-size single-producer ring; the
 // recorder thread formats them and appends complete lines only, one write() per batch, and
@@ -9,6 +11,7 @@
 // take with a logged error.
 #pragma once
 
+#include "core/timecode.hpp"
 #include "drivers/unique_fd.hpp"
 #include "firmware_app/daemon/frame_result.hpp"
 
@@ -26,13 +29,16 @@
 
 namespace lipdrive {
 
-/// DIR/take-YYYYmmdd-HHMMSS.csv for the current local time (-2, -3, ... appended when taken).
-std::filesystem::path take_file_name(const std::filesystem::path& dir);
+/// DIR/NAME.csv, or DIR/take-YYYYmmdd-HHMMSS.csv for the current local time when `name` is
+/// empty; -2, -3, ... appended when taken.
+std::filesystem::path take_file_name(const std::filesystem::path& dir, const std::string& name = "");
 
 class TakeRecorder : public ResultSink {
  public:
-  /// `source`: the source column of every row.
-  TakeRecorder(std::string source, std::chrono::milliseconds flush_interval);
+  /// `source`: the source column of every row. `timecode_rate`: the rows carry a timecode
+  /// column at this rate.
+  TakeRecorder(std::string source, std::chrono::milliseconds flush_interval,
+               std::optional<TimecodeRate> timecode_rate = std::nullopt);
   ~TakeRecorder() override;
   TakeRecorder(const TakeRecorder&) = delete;
   TakeRecorder& operator=(const TakeRecorder&) = delete;
@@ -59,11 +65,14 @@ class TakeRecorder : public ResultSink {
   void open_take(const std::filesystem::path& file);
   void close_take();
   void drain();
+  /// The take's first lines; `first`: its first row (nullptr: the take has none).
+  void append_header(const FrameResult* first);
   bool write_all(const char* data, std::size_t size);
   void fail(const std::string& message);
 
   std::string source_;
   std::chrono::milliseconds flush_interval_;
+  std::optional<TimecodeRate> timecode_rate_;
 
   std::array<FrameResult, kRingSize> ring_{};
   std::atomic<std::uint64_t> head_{0}, tail_{0};  // written by push() / the recorder thread
@@ -81,6 +90,7 @@ class TakeRecorder : public ResultSink {
   std::filesystem::path file_;
   std::chrono::steady_clock::time_point last_sync_;
   fmt::memory_buffer lines_;
+  bool header_pending_ = false;  // the header waits for the take's first row (its timecode)
 
   std::thread thread_;
 };

@@ -1,8 +1,10 @@
 #include "firmware_app/outputs/make_outputs.hpp"
 
+#include "firmware_app/outputs/dmx_output.hpp"
 #include "firmware_app/outputs/gpio_output.hpp"
 #include "firmware_app/outputs/modbus_client_output.hpp"
 #include "firmware_app/outputs/modbus_server_output.hpp"
+#include "firmware_app/outputs/osc_output.hpp"
 #include "firmware_app/outputs/serial_output.hpp"
 
 #include <fmt/format.h>
@@ -17,6 +19,15 @@ std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveCon
     outputs.push_back(std::make_unique<ModbusClientOutput>(options, config.channels));
   for (const SerialOutputOptions& options : config.outputs.serial)
     outputs.push_back(std::make_unique<SerialOutput>(options, config.channels));
+  for (const DmxOutputOptions& options : config.outputs.dmx) outputs.push_back(std::make_unique<DmxOutput>(options));
+  for (const OscOutputOptions& options : config.outputs.osc) {
+    try {
+      outputs.push_back(std::make_unique<OscOutput>(options, config.channels));
+    } catch (const UdpError& e) {
+      // Resolved when the file was loaded; a name server that changed its mind since.
+      throw ConfigError(fmt::format("{}: key outputs.osc: {}", config.file.string(), e.what()));
+    }
+  }
   if (config.outputs.gpio.enabled) {
     try {
       outputs.push_back(

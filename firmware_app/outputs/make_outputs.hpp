@@ -1,4 +1,5 @@
-// The drive outputs a configuration asks for (Modbus servers and clients, serial lines, GPIO):
+// The drive outputs a configuration asks for (Modbus servers and clients, serial lines, DMX,
+// GPIO):
 // the one place that knows every kind.
 #pragma once
 

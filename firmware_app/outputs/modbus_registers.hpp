@@ -17,7 +17,12 @@ inline constexpr int kLatencyUsHigh = 4;  // capture -> processed, µs, 32 bits,
 inline constexpr int kLatencyUsLow = 5;
 inline constexpr int kFpsTenths = 6;  // processed frames per second × 10
 inline constexpr int kChannelCount = 7;
-inline constexpr int kFirstChannel = 16;  // one register per channel, ChannelBank order
+// The newest frame's timecode ([timecode]; docs/modbus-register-map.md).
+inline constexpr int kTimecodeHoursMinutes = 8;   // hours · 256 + minutes
+inline constexpr int kTimecodeSecondsFrames = 9;  // seconds · 256 + frames
+inline constexpr int kTimecodeState = 10;         // bit 0 valid, bit 1 drop-frame
+inline constexpr int kTimecodeRate = 11;          // frames per second × 100 (2400, 2500, 2997, 3000)
+inline constexpr int kFirstChannel = 16;          // one register per channel, ChannelBank order
 // Holding registers (functions 3, 6, 16, 22, 23).
 inline constexpr int kOutputEnable = 0;    // 0 off, anything else on
 inline constexpr int kCalibrate = 1;       // write 1: calibrate neutral; reads 0

@@ -51,6 +51,16 @@ void ModbusServerOutput::refresh(std::span<std::uint16_t> input, std::span<std::
   put_u32(input, kLatencyUsHigh, static_cast<double>(frame.latency_ms) * 1000);
   input[kFpsTenths] = to_register(static_cast<double>(frame.fps) * 10);
   input[kChannelCount] = static_cast<std::uint16_t>(channel_count_);
+  if (frame.timecode >= 0) {
+    const Timecode t = timecode_from_frame(frame.timecode, frame.timecode_rate);
+    input[kTimecodeHoursMinutes] = static_cast<std::uint16_t>(t.hours << 8 | t.minutes);
+    input[kTimecodeSecondsFrames] = static_cast<std::uint16_t>(t.seconds << 8 | t.frames);
+    input[kTimecodeState] = static_cast<std::uint16_t>(1 | (is_drop_frame(frame.timecode_rate) ? 2 : 0));
+    input[kTimecodeRate] = static_cast<std::uint16_t>(std::lround(frame_rate(frame.timecode_rate).fps() * 100));
+  } else {
+    for (const int reg : {kTimecodeHoursMinutes, kTimecodeSecondsFrames, kTimecodeState, kTimecodeRate})
+      input[static_cast<std::size_t>(reg)] = 0;
+  }
   for (int i = 0; i < channel_count_; ++i)
     input[static_cast<std::size_t>(kFirstChannel + i)] = to_register(frame.values[static_cast<std::size_t>(i)]);
 

@@ -3,6 +3,8 @@
 #pragma once
 
 #include "core/drive_channels.hpp"
+#include "core/drive_signals.hpp"
+#include "core/timecode.hpp"
 #include "firmware_app/daemon/latency_histogram.hpp"
 #include "firmware_app/daemon/status_word.hpp"
 
@@ -28,6 +30,11 @@ struct DriveFrame {
   float latency_ms = 0;              // capture -> processed of the newest result
   int channel_count = 0;
   std::array<double, kMaxChannels> values{};  // output units, ChannelBank order
+  /// The newest result's calibrated signals while it counts as tracked, else zero: for
+  /// outputs that describe the face rather than drive the figure (OSC's gestures).
+  DriveSignals signals;
+  std::int32_t timecode = -1;  // the newest result's (FrameResult::timecode); -1: none
+  TimecodeRate timecode_rate = TimecodeRate::k25;
 };
 
 /// A drive output. publish() runs on the pipeline's output thread for every new result and

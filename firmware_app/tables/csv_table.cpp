@@ -66,6 +66,8 @@ CsvTable read_csv_table(const std::filesystem::path& path) {
   for (int line_number = 1; std::getline(in, line); ++line_number) {
     if (!line.empty() && line.back() == '\r') line.pop_back();  // CRLF files
     if (trimmed(line).empty()) continue;
+    // Comment lines before the header (a take's timecode_start).
+    if (table.header.empty() && line.front() == '#') continue;
     auto fields = split_fields(line);
     if (!fields) data_error(table, line_number, "unterminated quoted field");
     if (table.header.empty()) {

@@ -19,7 +19,8 @@ struct CsvTable {
   std::vector<int> line_numbers;               // 1-based file line of each row
 };
 
-/// Reads a whole CSV file; blank lines are skipped. Throws CommandError:
+/// Reads a whole CSV file; blank lines, and lines starting with '#' before the header, are
+/// skipped. Throws CommandError:
 /// kExitNoInput when the file cannot be opened, kExitDataError for an empty file,
 /// duplicate column names, an unterminated quote or a row with the wrong field count.
 CsvTable read_csv_table(const std::filesystem::path& path);

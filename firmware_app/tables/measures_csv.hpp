@@ -5,6 +5,7 @@
 #include "core/drive_signals.hpp"
 #include "core/landmarks.hpp"
 #include "core/mouth_measures.hpp"
+#include "core/timecode.hpp"
 
 #include <fmt/format.h>
 
@@ -30,5 +31,12 @@ std::string measures_csv_header(bool include_landmarks);
 /// not tracked (empty fields; `visemes` is not read). `landmarks` null: no landmark columns.
 void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, const MouthMeasures* measures,
                              std::span<const float, kNumVisemes> visemes, const Landmarks2D* landmarks);
+
+/// "HH:MM:SS:FF" (';' before the frames at 29.97 drop-frame) of a frame number: the timecode
+/// column of takes and of `lipdrive process --timecode`.
+inline void append_timecode(fmt::memory_buffer& row, std::int32_t frame, TimecodeRate rate) {
+  const TimecodeText text = format_frame(frame, rate);
+  row.append(text.view());
+}
 
 }  // namespace lipdrive

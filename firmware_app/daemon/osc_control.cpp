@@ -1,0 +1,90 @@
+#include "firmware_app/daemon/osc_control.hpp"
+
+#include "core/osc_addresses.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+
+namespace lipdrive {
+namespace {
+
+// How often the thread looks at stop_ while nothing arrives.
+constexpr std::chrono::milliseconds kPoll{100};
+
+/// A slate as a file-name part: letters, digits, '-', '.' and '_' kept, everything else '_'.
+std::string file_name_part(std::string_view text) {
+  std::string part(text.substr(0, 64));
+  std::ranges::replace_if(
+      part, [](char c) { return !(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.' || c == '_'); },
+      '_');
+  if (!part.empty() && part.front() == '.') part.front() = '_';
+  return part;
+}
+
+}  // namespace
+
+OscControl::OscControl(const std::string& address, int port, DriveControl& control)
+    : receiver_(address, port), control_(control), thread_(&OscControl::run, this) {}
+
+OscControl::~OscControl() {
+  stop_ = true;
+  thread_.join();
+}
+
+std::optional<std::string> OscControl::next_take_name() {
+  std::lock_guard lock(mutex_);
+  if (slate_.empty()) return std::nullopt;
+  return slate_ + "_" + std::to_string(take_++);
+}
+
+void OscControl::run() {
+  std::string from;
+  while (!stop_.load(std::memory_order_relaxed)) {
+    const auto received = receiver_.receive(
+        kPoll, [this](const OscMessage& m) { handle(m); }, &from);
+    if (received == OscReceiver::Received::kMalformed)
+      spdlog::warn("{}: a malformed OSC datagram from {}", describe(), from);
+    else if (received == OscReceiver::Received::kBundle)
+      spdlog::warn("{}: a bundle from {}; send commands as single messages", describe(), from);
+  }
+}
+
+void OscControl::handle(const OscMessage& m) {
+  const std::string_view address = m.address();
+  const auto set_slate = [&](int at) {
+    if (const auto slate = m.string(at)) {
+      std::lock_guard lock(mutex_);
+      slate_ = file_name_part(*slate);
+    }
+  };
+  const auto set_take = [&](int at) {
+    if (const auto take = m.number(at); take && *take >= 0 && *take < 1e6) {
+      std::lock_guard lock(mutex_);
+      take_ = static_cast<int>(*take);
+    }
+  };
+  if (address == osc::kRecordStart) {
+    set_slate(0);
+    set_take(1);
+    control_.recording_request.store(1, std::memory_order_relaxed);
+  } else if (address == osc::kRecordStop) {
+    control_.recording_request.store(0, std::memory_order_relaxed);
+  } else if (address == osc::kSlate) {
+    set_slate(0);
+  } else if (address == osc::kTake) {
+    set_take(0);
+  } else if (address == osc::kCalibrate) {
+    control_.calibrate_requests.fetch_add(1, std::memory_order_relaxed);
+  } else if (address == osc::kOutputEnable) {
+    if (const auto on = m.number(0)) control_.outputs_enabled.store(*on != 0, std::memory_order_relaxed);
+  } else {
+    spdlog::debug("{}: ignored {} ,{}", describe(), address, m.types());
+    return;
+  }
+  spdlog::info("{}: {} ,{}", describe(), address, m.types());
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,159 @@
+// `lipdrive run` on the simulated camera with an OSC output to a liblo server in the test and
+// the OSC control input: every drive frame arrives as one time-tagged bundle with the
+// documented addresses (docs/osc.md), the remote commands take effect (a take named by slate
+// and take, output enable, calibrate), and the capture -> received latency of the bundles.
+#include "core/osc_addresses.hpp"
+#include "core/statistics.hpp"
+#include "daemon_process.hpp"
+#include "firmware_app/daemon/status_word.hpp"
+#include "fixture_paths.hpp"
+#include "osc_peers.hpp"
+#include "serial_peers.hpp"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <lo/lo.h>
+
+#include <algorithm>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+/// Nanoseconds since the Unix epoch of an OSC (NTP) time tag.
+std::int64_t unix_ns(lo_timetag tag) {
+  constexpr std::int64_t kNtpToUnix = 2'208'988'800;
+  return (static_cast<std::int64_t>(tag.sec) - kNtpToUnix) * 1'000'000'000 +
+         static_cast<std::int64_t>((static_cast<std::uint64_t>(tag.frac) * 1'000'000'000) >> 32);
+}
+
+std::int64_t unix_ns(std::chrono::system_clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
+}
+
+TEST(DaemonOsc, EveryDriveFrameIsOneBundleAndRemoteCommandsTakeEffect) {
+  if (!fs::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  const test::TempDir dir;
+  test::OscCapture capture;
+  const int control_port = test::free_port(SOCK_DGRAM);
+  const fs::path takes = dir.path() / "takes";
+  const fs::path config = dir.path() / "lipdrive.toml";
+  std::ofstream(config) << test::sim_camera_at_60_fps()
+                        << fmt::format(R"([status]
+print_interval_ms = 0
+[recording]
+dir = "{}"
+[[channels]]
+name = "open"
+signal = "open"
+[[channels]]
+name = "width"
+signal = "width"
+[[channels]]
+name = "seal"
+signal = "seal"
+[[outputs.osc]]
+host = "localhost"
+port = {}
+[osc_control]
+enabled = true
+port = {}
+)",
+                                       takes.string(), capture.port(), control_port);
+  test::DaemonProcess daemon(config, dir.path() / "stderr.txt", "--stats");
+  ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
+  std::this_thread::sleep_for(3s);
+
+  // Every bundle: the documented addresses in the documented order and types.
+  const std::vector<std::pair<std::string, std::string>> expected = {
+      {"/lipdrive/frame", "i"},      {"/lipdrive/status", "i"},
+      {"/lipdrive/open", "f"},       {"/lipdrive/width", "f"},
+      {"/lipdrive/seal", "f"},       {"/found", "i"},
+      {"/gesture/mouth/width", "f"}, {"/gesture/mouth/height", "f"},
+      {"/gesture/jaw", "f"},         {"/jawOpen", "f"},
+      {"/mouthClose", "f"},          {"/mouthFunnel", "f"},
+      {"/mouthPucker", "f"}};
+  auto bundles = capture.bundles();
+  ASSERT_GT(bundles.size(), 120u) << daemon.log();
+  EXPECT_TRUE(capture.loose_messages().empty()) << "everything travels in bundles";
+  std::vector<double> latency_ms;
+  std::vector<int> counters;
+  bool found = false;
+  float highest_jaw_open = 0;
+  for (const auto& bundle : bundles) {
+    ASSERT_EQ(bundle.messages.size(), expected.size()) << [&] {
+      std::string addresses;
+      for (const auto& m : bundle.messages) addresses += m.address + " ";
+      return addresses;
+    }();
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_EQ(bundle.messages[i].address, expected[i].first);
+      EXPECT_EQ(bundle.messages[i].types, expected[i].second) << expected[i].first;
+    }
+    counters.push_back(static_cast<int>(bundle.messages[0].number));
+    found |= bundle.messages[5].number == 1;
+    highest_jaw_open = std::max(highest_jaw_open, bundle.messages[9].number);
+    latency_ms.push_back(static_cast<double>(unix_ns(bundle.received) - unix_ns(bundle.time_tag)) / 1e6);
+  }
+  EXPECT_TRUE(found) << "/found 1 while the face is tracked";
+  EXPECT_GT(highest_jaw_open, 0.3f) << "jawOpen follows the talking mouth";
+  // One bundle per drive frame: the counters of consecutive bundles step by one.
+  const std::size_t steps = counters.size() - 1;
+  std::size_t consecutive = 0;
+  for (std::size_t i = 1; i < counters.size(); ++i) consecutive += counters[i] == counters[i - 1] + 1;
+  EXPECT_GE(static_cast<double>(consecutive), 0.98 * static_cast<double>(steps))
+      << consecutive << " of " << steps << " bundles follow their predecessor's frame";
+  RecordProperty("osc_consecutive_bundles", fmt::format("{} of {}", consecutive, steps));
+  // The time tag is the capture time: a bundle arrives after it, and soon.
+  const double median = quantile(latency_ms, 0.5), p99 = quantile(latency_ms, 0.99);
+  EXPECT_GT(quantile(latency_ms, 0.0), -1.0) << "a time tag after the bundle arrived";
+  EXPECT_LT(median, 50.0);
+  const std::string figures = fmt::format("capture->OSC received: median {:.2f} ms, p99 {:.2f} ms ({} bundles)", median,
+                                          p99, latency_ms.size());
+  RecordProperty("osc_capture_to_received", figures);
+  std::cerr << figures << "\n";
+
+  // Remote commands, as Live Link Face sends them.
+  const std::string port = std::to_string(control_port);
+  lo_address to = lo_address_new("127.0.0.1", port.c_str());
+  const auto status_now = [&] {
+    const std::size_t seen = capture.bundles().size();
+    EXPECT_TRUE(test::eventually([&] { return capture.bundles().size() > seen + 2; }, 2s));
+    return static_cast<int>(capture.bundles().back().messages[1].number);
+  };
+  ASSERT_GT(lo_send(to, "/RecordStart", "si", "Scene 12", 3), 0);
+  const fs::path take = takes / "Scene_12_3.csv";
+  EXPECT_TRUE(test::eventually([&] { return fs::exists(take); }, 3s)) << daemon.log();
+  EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusRecording) != 0; }, 3s));
+  std::this_thread::sleep_for(500ms);
+  ASSERT_GT(lo_send(to, "/RecordStop", ""), 0);
+  EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusRecording) == 0; }, 3s));
+  std::ifstream rows(take);
+  const auto lines = std::count(std::istreambuf_iterator<char>(rows), std::istreambuf_iterator<char>(), '\n');
+  EXPECT_GT(lines, 15) << "half a second of rows at 60 fps";
+  // The next take under the same slate counts up.
+  ASSERT_GT(lo_send(to, "/RecordStart", ""), 0);
+  EXPECT_TRUE(test::eventually([&] { return fs::exists(takes / "Scene_12_4.csv"); }, 3s)) << daemon.log();
+  ASSERT_GT(lo_send(to, "/RecordStop", ""), 0);
+
+  ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 0), 0);
+  EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusOutputsEnabled) == 0; }, 3s));
+  ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 1), 0);
+  EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusOutputsEnabled) != 0; }, 3s));
+  ASSERT_GT(lo_send(to, "/lipdrive/calibrate", ""), 0);
+  EXPECT_TRUE(daemon.wait_for_log("calibrating", 3s)) << daemon.log();
+  lo_address_free(to);
+
+  daemon.signal(SIGTERM);
+  ASSERT_EQ(daemon.wait(2000ms), 0) << daemon.log();
+  const std::string log = daemon.log();
+  const auto at = log.find("capture->wire latency, osc");
+  ASSERT_NE(at, std::string::npos) << log;
+  RecordProperty("osc_capture_to_sent", log.substr(at, log.find('\n', at) - at));
+  std::cerr << log.substr(at, log.find('\n', at) - at) << "\n";
+}
+
+}  // namespace
+}  // namespace lipdrive

@@ -1,0 +1,184 @@
+// OSC: the address scheme, the derived ARKit weights, the sender against a liblo server in
+// the test, and the control receiver against liblo's sender.
+#include "core/arkit_from_signals.hpp"
+#include "core/osc_addresses.hpp"
+#include "drivers/osc_receiver.hpp"
+#include "drivers/osc_sender.hpp"
+#include "osc_peers.hpp"
+#include "serial_peers.hpp"
+
+#include <gtest/gtest.h>
+#include <lo/lo.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+namespace lipdrive {
+namespace {
+
+using namespace std::chrono_literals;
+
+DriveSignals signals(float open, float width, float protrusion, float seal = 0) {
+  DriveSignals s;
+  s[Signal::kOpen] = open;
+  s[Signal::kWidth] = width;
+  s[Signal::kProtrusion] = protrusion;
+  s[Signal::kSeal] = seal;
+  return s;
+}
+
+TEST(OscAddresses, ChannelNamesMustBeAddressParts) {
+  EXPECT_TRUE(osc::is_address_part("jaw"));
+  EXPECT_TRUE(osc::is_address_part("viseme_B-M-P"));
+  for (const char* bad : {"", "jaw open", "jaw/open", "jaw*", "a#b", "a,b", "a?b", "a[b", "a]b", "a{b", "a}b"})
+    EXPECT_FALSE(osc::is_address_part(bad)) << bad;
+  EXPECT_EQ(osc::channel_address("jaw"), "/lipdrive/jaw");
+}
+
+TEST(OscAddresses, FaceOscGesturesLandInFaceOscsRanges) {
+  const auto rest = osc::face_osc_gestures(signals(0, 0, 0));
+  EXPECT_FLOAT_EQ(rest.mouth_width, 10);
+  EXPECT_FLOAT_EQ(rest.mouth_height, 0);
+  EXPECT_FLOAT_EQ(rest.jaw, 20);
+  const auto wide_open = osc::face_osc_gestures(signals(1, 1, 0));
+  EXPECT_FLOAT_EQ(wide_open.mouth_width, 18);
+  EXPECT_FLOAT_EQ(wide_open.mouth_height, 7);
+  EXPECT_FLOAT_EQ(wide_open.jaw, 25);
+  EXPECT_FLOAT_EQ(osc::face_osc_gestures(signals(3, -1, 0)).mouth_height, 7) << "clamped";
+}
+
+TEST(ArkitFromSignals, FourMouthWeightsFromTheSignals) {
+  EXPECT_EQ(kDerivedArkitNames[0], "jawOpen");
+  const DerivedArkitWeights rest = arkit_from_signals(signals(0, 0.5f, 0));
+  for (float w : rest) EXPECT_FLOAT_EQ(w, 0);
+  const DerivedArkitWeights oh = arkit_from_signals(signals(0.8f, 0.2f, 0.5f));
+  EXPECT_FLOAT_EQ(oh[0], 0.8f);            // jawOpen
+  EXPECT_FLOAT_EQ(oh[2], 0.4f);            // mouthFunnel: forward and open
+  EXPECT_NEAR(oh[3], 0.1f, 1e-6);          // mouthPucker: forward and closed
+  EXPECT_NEAR(oh[2] + oh[3], 0.5f, 1e-6);  // together: the protrusion
+  const DerivedArkitWeights press = arkit_from_signals(signals(0, 0.4f, 0, 0.9f));
+  EXPECT_FLOAT_EQ(press[1], 0.9f);  // mouthClose: the lips touch
+  const DerivedArkitWeights over = arkit_from_signals(signals(2, 0, 2, 3));
+  for (float w : over) {
+    EXPECT_GE(w, 0);
+    EXPECT_LE(w, 1);
+  }
+}
+
+TEST(OscTimeTag, NtpSecondsAndFraction) {
+  const OscTimeTag epoch = osc_time_tag(0);
+  EXPECT_EQ(epoch.seconds, 2'208'988'800u);
+  EXPECT_EQ(epoch.fraction, 0u);
+  const OscTimeTag half = osc_time_tag(1'500'000'000);
+  EXPECT_EQ(half.seconds, 2'208'988'801u);
+  EXPECT_EQ(half.fraction, 1u << 31);
+  // liblo's clock and ours agree on "now" to well within a second.
+  lo_timetag now;
+  lo_timetag_now(&now);
+  const auto unix_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  EXPECT_NEAR(static_cast<double>(osc_time_tag(unix_ns).seconds), static_cast<double>(now.sec), 1.0);
+}
+
+TEST(OscSender, OneBundlePerSendWithItsTimeTag) {
+  test::OscCapture capture;
+  OscSender sender("localhost", capture.port());
+  for (int i = 0; i < 5; ++i) {
+    sender.begin_bundle(osc_time_tag(1'700'000'000'000'000'000 + i * 16'666'667LL));
+    sender.add("/lipdrive/jaw", 0.25f * static_cast<float>(i));
+    sender.add("/found", std::int32_t{1});
+    sender.add("/lipdrive/timecode", "10:00:00:00");
+    ASSERT_TRUE(sender.send_bundle()) << std::strerror(errno);
+  }
+  ASSERT_TRUE(test::eventually([&] { return capture.bundles().size() == 5; }, 3s));
+  const auto bundles = capture.bundles();
+  for (int i = 0; i < 5; ++i) {
+    const auto& b = bundles[static_cast<std::size_t>(i)];
+    EXPECT_EQ(b.time_tag.sec, osc_time_tag(1'700'000'000'000'000'000 + i * 16'666'667LL).seconds);
+    EXPECT_EQ(b.time_tag.frac, osc_time_tag(1'700'000'000'000'000'000 + i * 16'666'667LL).fraction);
+    ASSERT_EQ(b.messages.size(), 3u);
+    EXPECT_EQ(b.messages[0].address, "/lipdrive/jaw");
+    EXPECT_EQ(b.messages[0].types, "f");
+    EXPECT_FLOAT_EQ(b.messages[0].number, 0.25f * static_cast<float>(i));
+    EXPECT_EQ(b.messages[1].types, "i");
+    EXPECT_EQ(b.messages[2].text, "10:00:00:00");
+  }
+  EXPECT_TRUE(capture.loose_messages().empty());
+}
+
+TEST(OscSender, AHostThatDoesNotResolveIsAnError) {
+  try {
+    OscSender sender("no-such-host.invalid", 9000);
+    FAIL() << "expected UdpError";
+  } catch (const UdpError& e) {
+    EXPECT_NE(std::string(e.what()).find("no-such-host.invalid"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OscReceiver, BindsTheGivenAddressOnly) {
+  OscReceiver receiver("127.0.0.1", 0);
+  EXPECT_GT(receiver.port(), 0);
+  EXPECT_EQ(receiver.describe(), "udp 127.0.0.1:" + std::to_string(receiver.port()));
+  // The same port on the same address is taken.
+  EXPECT_THROW(OscReceiver("127.0.0.1", receiver.port()), UdpError);
+}
+
+TEST(OscReceiver, ParsesMessagesAndRefusesBundles) {
+  OscReceiver receiver("127.0.0.1", 0);
+  const std::string port = std::to_string(receiver.port());
+  lo_address to = lo_address_new("127.0.0.1", port.c_str());
+  ASSERT_GT(lo_send(to, "/RecordStart", "si", "Scene 4", 12), 0);
+  ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "F"), 0);
+  lo_bundle bundle = lo_bundle_new(LO_TT_IMMEDIATE);
+  lo_message inside = lo_message_new();
+  lo_bundle_add_message(bundle, "/RecordStop", inside);
+  lo_send_bundle(to, bundle);
+  lo_bundle_free_recursive(bundle);
+  lo_address_free(to);
+
+  std::vector<std::string> seen;
+  std::optional<std::string_view> slate;
+  std::optional<double> take, enable;
+  std::vector<OscReceiver::Received> results;
+  std::string from;
+  for (int i = 0; i < 4; ++i) {
+    results.push_back(receiver.receive(
+        1000ms,
+        [&](const OscMessage& m) {
+          seen.emplace_back(m.address());
+          if (m.address() == "/RecordStart") {
+            EXPECT_EQ(m.types(), "si");
+            slate = m.string(0);
+            EXPECT_EQ(slate, "Scene 4");
+            take = m.number(1);
+            EXPECT_FALSE(m.string(1));
+            EXPECT_FALSE(m.number(2));
+          }
+          if (m.address() == "/lipdrive/output_enable") enable = m.number(0);
+        },
+        &from));
+  }
+  EXPECT_EQ(results[0], OscReceiver::Received::kMessage);
+  EXPECT_NE(from.find("127.0.0.1:"), std::string::npos) << from;
+  EXPECT_EQ(results[2], OscReceiver::Received::kBundle);
+  EXPECT_EQ(results[3], OscReceiver::Received::kNothing);
+  EXPECT_EQ(seen, (std::vector<std::string>{"/RecordStart", "/lipdrive/output_enable"}));
+  EXPECT_EQ(take, 12);
+  EXPECT_EQ(enable, 0);
+}
+
+TEST(OscReceiver, ReportsMalformedDatagrams) {
+  OscReceiver receiver("127.0.0.1", 0);
+  const UdpEndpoint to = resolve_udp("127.0.0.1", receiver.port());
+  const UdpSocket socket = UdpSocket::for_sending(to);
+  const std::array<std::uint8_t, 5> junk{'/', 'a', 0, 0, 7};
+  ASSERT_TRUE(socket.send_to(junk, to));
+  bool called = false;
+  EXPECT_EQ(receiver.receive(1000ms, [&](const OscMessage&) { called = true; }), OscReceiver::Received::kMalformed);
+  EXPECT_FALSE(called);
+}
+
+}  // namespace
+}  // namespace lipdrive
