@@ -1,5 +1,7 @@
 #include "drivers/udp_socket.hpp"
 
+#include <fmt/format.h>
+
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netdb.h>
@@ -27,14 +29,14 @@ std::string UdpEndpoint::describe() const {
     const auto* in = reinterpret_cast<const sockaddr_in*>(&address);
     ::inet_ntop(AF_INET, &in->sin_addr, host, sizeof host);
     port = ntohs(in->sin_port);
-    return std::string(host) + ":" + std::to_string(port);
+    return fmt::format("{}:{}", host, port);
   }
   if (address.ss_family == AF_INET6) {
     const auto* in6 = reinterpret_cast<const sockaddr_in6*>(&address);
     ::inet_ntop(AF_INET6, &in6->sin6_addr, host, sizeof host);
     port = ntohs(in6->sin6_port);
   }
-  return "[" + std::string(host) + "]:" + std::to_string(port);
+  return fmt::format("[{}]:{}", host, port);
 }
 
 UdpEndpoint resolve_udp(const std::string& host, int port) {

@@ -18,7 +18,7 @@ OscOutput::OscOutput(const OscOutputOptions& options, std::span<const ChannelSpe
       sender_(options.host, options.port) {
   for (const int index : channel_indices_)
     channel_addresses_.push_back(osc::channel_address(channels[static_cast<std::size_t>(index)].name));
-  for (const std::string_view name : kDerivedArkitNames) arkit_addresses_.push_back("/" + std::string(name));
+  for (const std::string_view name : kDerivedArkitNames) arkit_addresses_.push_back(fmt::format("/{}", name));
   start();
 }
 
