@@ -68,7 +68,7 @@ class SerialArrivals {
 
 TEST(DaemonDmx, UniverseFollowsTheMappingSurvivesAnOladRestartAndEndsNeutral) {
   if (!test::OladProcess::installed()) GTEST_SKIP() << "olad is not installed (Debian package ola)";
-  if (!fs::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const test::TempDir dir;
   test::OladProcess olad(test::free_port());
   auto watcher = std::make_unique<test::UniverseWatcher>(olad.rpc_port(), kUniverse);

@@ -34,7 +34,7 @@ std::int64_t unix_ns(std::chrono::system_clock::time_point t) {
 }
 
 TEST(DaemonOsc, EveryDriveFrameIsOneBundleAndRemoteCommandsTakeEffect) {
-  if (!fs::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const test::TempDir dir;
   test::OscCapture capture;
   const int control_port = test::free_port(SOCK_DGRAM);

@@ -68,7 +68,7 @@ port = {}
 }
 
 TEST(DaemonTimecode, LtcStampsEveryTakeRowWithTheEncodersFrame) {
-  if (!fs::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const test::TempDir dir;
   const int port = test::free_port();
   const fs::path config = dir.path() / "lipdrive.toml";
@@ -129,7 +129,7 @@ TEST(DaemonTimecode, LtcStampsEveryTakeRowWithTheEncodersFrame) {
 }
 
 TEST(DaemonTimecode, SystemClockAtDropFrameCountsUpAcrossATake) {
-  if (!fs::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const test::TempDir dir;
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << config_with("source = \"clock\"\nfps = 29.97", dir.path() / "takes", test::free_port());
@@ -163,7 +163,7 @@ TEST(DaemonTimecode, SystemClockAtDropFrameCountsUpAcrossATake) {
 }
 
 TEST(DaemonTimecode, AbsentOrGarbledLtcIsAStatusLineWarning) {
-  if (!fs::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
   for (const auto& [keys, warning] :
        {std::pair<std::string, std::string>{"source = \"ltc\"\nsim_signal = \"noise\"", "no LTC on sim:"},
         {"source = \"ltc\"\nfps = 30\nsim_fps = 29.97", "LTC garbled on sim:"}}) {
