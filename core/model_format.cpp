@@ -34,6 +34,22 @@ class ByteWriter {
     for (Eigen::Index i = 0; i < count; ++i) f32(data[i]);
   }
   void bytes(std::string_view s) { out_.insert(out_.end(), s.begin(), s.end()); }
+  void bytes(std::span<const std::uint8_t> s) { out_.insert(out_.end(), s.begin(), s.end()); }
+  void names(const std::vector<std::string>& names) {
+    for (const auto& name : names) {
+      u16(static_cast<std::uint16_t>(name.size()));
+      bytes(name);
+    }
+  }
+  /// A column as f32 scale + i16 values (format version 2): value = scale * q, |error| <= scale / 2.
+  void quantized(const float* column, Eigen::Index count) {
+    float largest = 0;
+    for (Eigen::Index i = 0; i < count; ++i) largest = std::max(largest, std::abs(column[i]));
+    const float scale = largest > 0 ? largest / 32767.0f : 1.0f;
+    f32(scale);
+    for (Eigen::Index i = 0; i < count; ++i)
+      u16(static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(column[i] / scale))));
+  }
   std::vector<std::uint8_t>& buffer() { return out_; }
 
  private:
@@ -52,6 +68,10 @@ void check_serializable(const MorphableModel& m) {
     fail("pose_coefficients is not K x P");
   for (const auto& name : m.pose_names)
     if (name.size() > std::numeric_limits<std::uint16_t>::max()) fail("pose name longer than 65535 bytes");
+  if (m.has_expressions() && (m.expressions.rows() != m.mean.size() || m.expressions.cols() != m.num_expressions()))
+    fail("expressions is not 3N x E");
+  for (const auto& name : m.expression_names)
+    if (name.size() > std::numeric_limits<std::uint16_t>::max()) fail("expression name longer than 65535 bytes");
 }
 
 // --- reading -------------------------------------------------------------
@@ -80,6 +100,19 @@ class ByteReader {
     const auto s = take(length);
     return std::string(s.begin(), s.end());
   }
+  std::vector<std::string> names(std::uint32_t count) {
+    std::vector<std::string> out;
+    out.reserve(count);
+    for (std::uint32_t i = 0; i < count; ++i) out.push_back(string(u16()));
+    return out;
+  }
+  /// The inverse of ByteWriter::quantized.
+  void quantized(float* column, Eigen::Index count, const char* field) {
+    const float scale = f32();
+    if (!std::isfinite(scale) || !(scale > 0))
+      throw ModelFormatError(source_ + ": " + field + " has a scale that is not a positive number");
+    for (Eigen::Index i = 0; i < count; ++i) column[i] = scale * static_cast<std::int16_t>(u16());
+  }
   std::size_t remaining() const { return bytes_.size() - position_; }
 
  private:
@@ -97,28 +130,85 @@ class ByteReader {
 };
 
 struct Header {
-  std::uint32_t version, vertices, components, triangles, poses;
-  std::uint64_t payload_length;
+  std::uint32_t version, vertices, components, triangles, poses, expressions = 0;
+  std::uint64_t payload_length, inflated_length = 0;
   std::uint32_t checksum;
 };
 
-// Payload bytes before the pose names, or nullopt when the sizes overflow 64 bits.
+/// a * b + c * d + ... for the (count, bytes per value) pairs, or nullopt on 64-bit overflow.
+std::optional<std::uint64_t> sum_of_products(std::initializer_list<std::pair<std::uint64_t, std::uint64_t>> terms) {
+  std::uint64_t total = 0;
+  for (const auto& [count, size] : terms) {
+    std::uint64_t bytes = 0;
+    if (__builtin_mul_overflow(count, size, &bytes) || __builtin_add_overflow(total, bytes, &total))
+      return std::nullopt;
+  }
+  return total;
+}
+
+// Payload bytes the counts require (each name counted by its 2-byte length only), or nullopt
+// when the sizes overflow 64 bits. Version 1 stores the basis as f32, version 2 as f32 scale +
+// i16 per column and adds the expressions.
 std::optional<std::uint64_t> fixed_payload_bytes(const Header& h) {
   const std::uint64_t n3 = 3ull * h.vertices;
-  std::uint64_t basis_values = 0, coefficient_values = 0, total = 0;
+  std::uint64_t basis_values = 0, coefficient_values = 0, expression_values = 0;
   if (__builtin_mul_overflow(n3, std::uint64_t{h.components}, &basis_values)) return std::nullopt;
   if (__builtin_mul_overflow(std::uint64_t{h.components}, std::uint64_t{h.poses}, &coefficient_values))
     return std::nullopt;
-  const std::uint64_t values[] = {
-      1, n3, h.components, basis_values, 3ull * h.triangles, kNumLandmarks, coefficient_values};
-  for (std::uint64_t v : values) {
-    std::uint64_t bytes = 0;
-    if (__builtin_mul_overflow(v, std::uint64_t{4}, &bytes) || __builtin_add_overflow(total, bytes, &total))
-      return std::nullopt;
-  }
-  // Each pose name has at least its 2-byte length.
-  if (__builtin_add_overflow(total, 2ull * h.poses, &total)) return std::nullopt;
-  return total;
+  if (__builtin_mul_overflow(n3, std::uint64_t{h.expressions}, &expression_values)) return std::nullopt;
+  if (h.version == kModelFormatVersion)
+    return sum_of_products({{1, 4},
+                            {n3, 4},
+                            {h.components, 4},
+                            {basis_values, 4},
+                            {3ull * h.triangles, 4},
+                            {kNumLandmarks, 4},
+                            {coefficient_values, 4},
+                            {h.poses, 2}});
+  return sum_of_products({{1, 4},
+                          {n3, 4},
+                          {h.components, 4},
+                          {h.components, 4},
+                          {basis_values, 2},
+                          {3ull * h.triangles, 4},
+                          {kNumLandmarks, 4},
+                          {coefficient_values, 4},
+                          {h.poses, 2},
+                          {h.expressions, 2},
+                          {h.expressions, 4},
+                          {expression_values, 2}});
+}
+
+// Checks that the payload fills the file exactly and matches its checksum.
+void check_payload(std::span<const std::uint8_t> bytes, std::size_t header_size, const Header& h,
+                   const std::string& source) {
+  const std::uint64_t available = bytes.size() - header_size;
+  if (h.payload_length > available)
+    throw ModelFormatError(source + ": truncated (expected " + std::to_string(h.payload_length) +
+                           " payload bytes after the header, got " + std::to_string(available) + ")");
+  if (h.payload_length < available)
+    throw ModelFormatError(source + ": " + std::to_string(available - h.payload_length) +
+                           " unexpected bytes after the payload");
+  const std::uint32_t actual = payload_crc(bytes.subspan(header_size));
+  if (actual != h.checksum)
+    throw ModelFormatError(source + ": checksum mismatch (header says " + std::to_string(h.checksum) +
+                           ", payload has " + std::to_string(actual) + "): the file is corrupted");
+}
+
+// Checks the counts against the (inflated) payload length they must fit in.
+void check_counts(const Header& h, std::uint64_t payload_length, const std::string& source) {
+  const auto fixed = fixed_payload_bytes(h);
+  if (!fixed || *fixed > payload_length)
+    throw ModelFormatError(source + ": sizes inconsistent with the payload length (" + std::to_string(h.vertices) +
+                           " vertices, " + std::to_string(h.components) + " components, " +
+                           std::to_string(h.triangles) + " triangles, " + std::to_string(h.poses) + " poses, " +
+                           std::to_string(h.expressions) + " expressions do not fit in " +
+                           std::to_string(payload_length) + " bytes)");
+  if (h.vertices == 0) throw ModelFormatError(source + ": model has no vertices");
+  if (h.components == 0) throw ModelFormatError(source + ": model has no components");
+  if (std::uint64_t{h.components} > 3ull * h.vertices)
+    throw ModelFormatError(source + ": " + std::to_string(h.components) +
+                           " components exceed 3N = " + std::to_string(3ull * h.vertices));
 }
 
 // Reads and checks the header and the payload's extent and checksum; returns the header.
@@ -131,40 +221,50 @@ Header read_header(std::span<const std::uint8_t> bytes, const std::string& sourc
                            " header bytes, got " + std::to_string(bytes.size()) + ")");
   Header h{};
   h.version = static_cast<std::uint32_t>(get_le(bytes, 8, 4));
-  if (h.version != kModelFormatVersion)
+  if (h.version != kModelFormatVersion && h.version != kExpressionModelFormatVersion)
     throw ModelFormatError(source + ": unsupported format version " + std::to_string(h.version) +
-                           " (this build reads version " + std::to_string(kModelFormatVersion) + ")");
+                           " (this build reads versions " + std::to_string(kModelFormatVersion) + " and " +
+                           std::to_string(kExpressionModelFormatVersion) + ")");
   h.vertices = static_cast<std::uint32_t>(get_le(bytes, 12, 4));
   h.components = static_cast<std::uint32_t>(get_le(bytes, 16, 4));
   h.triangles = static_cast<std::uint32_t>(get_le(bytes, 20, 4));
   h.poses = static_cast<std::uint32_t>(get_le(bytes, 24, 4));
-  h.payload_length = get_le(bytes, 28, 8);
-  h.checksum = static_cast<std::uint32_t>(get_le(bytes, 36, 4));
-
-  const std::uint64_t available = bytes.size() - kModelHeaderSize;
-  if (h.payload_length > available)
-    throw ModelFormatError(source + ": truncated (expected " + std::to_string(h.payload_length) +
-                           " payload bytes after the header, got " + std::to_string(available) + ")");
-  if (h.payload_length < available)
-    throw ModelFormatError(source + ": " + std::to_string(available - h.payload_length) +
-                           " unexpected bytes after the payload");
-  const std::uint32_t actual = payload_crc(bytes.subspan(kModelHeaderSize));
-  if (actual != h.checksum)
-    throw ModelFormatError(source + ": checksum mismatch (header says " + std::to_string(h.checksum) +
-                           ", payload has " + std::to_string(actual) + "): the file is corrupted");
-
-  const auto fixed = fixed_payload_bytes(h);
-  if (!fixed || *fixed > h.payload_length)
-    throw ModelFormatError(source + ": sizes inconsistent with the payload length (" + std::to_string(h.vertices) +
-                           " vertices, " + std::to_string(h.components) + " components, " +
-                           std::to_string(h.triangles) + " triangles, " + std::to_string(h.poses) +
-                           " poses do not fit in " + std::to_string(h.payload_length) + " bytes)");
-  if (h.vertices == 0) throw ModelFormatError(source + ": model has no vertices");
-  if (h.components == 0) throw ModelFormatError(source + ": model has no components");
-  if (std::uint64_t{h.components} > 3ull * h.vertices)
-    throw ModelFormatError(source + ": " + std::to_string(h.components) +
-                           " components exceed 3N = " + std::to_string(3ull * h.vertices));
+  if (h.version == kModelFormatVersion) {
+    h.payload_length = get_le(bytes, 28, 8);
+    h.checksum = static_cast<std::uint32_t>(get_le(bytes, 36, 4));
+    check_payload(bytes, kModelHeaderSize, h, source);
+    check_counts(h, h.payload_length, source);
+    return h;
+  }
+  if (bytes.size() < kExpressionModelHeaderSize)
+    throw ModelFormatError(source + ": truncated (expected at least " + std::to_string(kExpressionModelHeaderSize) +
+                           " header bytes, got " + std::to_string(bytes.size()) + ")");
+  h.expressions = static_cast<std::uint32_t>(get_le(bytes, 28, 4));
+  h.payload_length = get_le(bytes, 32, 8);
+  h.inflated_length = get_le(bytes, 40, 8);
+  h.checksum = static_cast<std::uint32_t>(get_le(bytes, 48, 4));
+  if (get_le(bytes, 52, 4) != 0) throw ModelFormatError(source + ": the reserved header word is not 0");
+  check_payload(bytes, kExpressionModelHeaderSize, h, source);
+  check_counts(h, h.inflated_length, source);
+  const std::uint64_t most_names = 65537ull * (std::uint64_t{h.poses} + h.expressions);
+  if (h.inflated_length > kMaxInflatedModelBytes || h.inflated_length > *fixed_payload_bytes(h) + most_names)
+    throw ModelFormatError(source + ": inflated payload length " + std::to_string(h.inflated_length) +
+                           " is more than the sizes allow");
   return h;
+}
+
+/// The version 2 payload, inflated to exactly h.inflated_length bytes.
+std::vector<std::uint8_t> inflate_payload(std::span<const std::uint8_t> stream, const Header& h,
+                                          const std::string& source) {
+  std::vector<std::uint8_t> inflated(h.inflated_length);
+  uLongf inflated_size = static_cast<uLongf>(inflated.size());
+  uLong stream_size = static_cast<uLong>(stream.size());
+  const int status = ::uncompress2(inflated.data(), &inflated_size, stream.data(), &stream_size);
+  if (status != Z_OK || inflated_size != inflated.size() || stream_size != stream.size())
+    throw ModelFormatError(source + ": the compressed payload does not inflate to the " +
+                           std::to_string(h.inflated_length) + " bytes the header gives (zlib status " +
+                           std::to_string(status) + ")");
+  return inflated;
 }
 
 void require_finite(const float* data, Eigen::Index count, const std::string& source, const char* field) {
@@ -196,45 +296,92 @@ void validate_values(const MorphableModel& m, const std::string& source) {
       throw ModelFormatError(source + ": landmark " + std::to_string(l) + " vertex " + std::to_string(v) +
                              " out of range (model has " + std::to_string(n) + " vertices, -1 = unmapped)");
   }
+  for (std::size_t e = 0; e < m.expression_names.size(); ++e) {
+    const std::string& name = m.expression_names[e];
+    if (name.empty()) throw ModelFormatError(source + ": expression " + std::to_string(e) + " has no name");
+    if (std::find(m.expression_names.begin(), m.expression_names.begin() + e, name) != m.expression_names.begin() + e)
+      throw ModelFormatError(source + ": expression name \"" + name + "\" appears twice");
+  }
 }
 
 }  // namespace
 
-std::vector<std::uint8_t> serialize_model(const MorphableModel& m) {
-  check_serializable(m);
+std::uint32_t model_format_version(const MorphableModel& model) {
+  return model.has_expressions() ? kExpressionModelFormatVersion : kModelFormatVersion;
+}
+
+namespace {
+
+/// The header fields both versions start with: magic, version, N, K, T, P.
+void write_header_start(ByteWriter& file, const MorphableModel& m, std::uint32_t version) {
+  file.bytes(kMagic);
+  file.u32(version);
+  file.u32(static_cast<std::uint32_t>(m.num_vertices()));
+  file.u32(static_cast<std::uint32_t>(m.num_components()));
+  file.u32(static_cast<std::uint32_t>(m.triangles.size()));
+  file.u32(static_cast<std::uint32_t>(m.pose_names.size()));
+}
+
+/// The payload fields both versions share after the basis: triangles, landmarks, poses.
+void write_topology_and_poses(ByteWriter& payload, const MorphableModel& m) {
+  for (const Triangle& t : m.triangles)
+    for (std::uint32_t v : t) payload.u32(v);
+  for (std::int32_t v : m.landmark_vertex) payload.i32(v);
+  payload.names(m.pose_names);
+  payload.floats(m.pose_coefficients.data(), m.pose_coefficients.size());
+}
+
+std::vector<std::uint8_t> serialize_pose_model(const MorphableModel& m) {
   ByteWriter payload;
   payload.f32(m.total_variance);
   payload.floats(m.mean.data(), m.mean.size());
   payload.floats(m.stddev.data(), m.stddev.size());
   payload.floats(m.basis.data(), m.basis.size());  // Eigen is column-major
-  for (const Triangle& t : m.triangles)
-    for (std::uint32_t v : t) payload.u32(v);
-  for (std::int32_t v : m.landmark_vertex) payload.i32(v);
-  for (const auto& name : m.pose_names) {
-    payload.u16(static_cast<std::uint16_t>(name.size()));
-    payload.bytes(name);
-  }
-  payload.floats(m.pose_coefficients.data(), m.pose_coefficients.size());
+  write_topology_and_poses(payload, m);
 
   ByteWriter file;
-  file.bytes(kMagic);
-  file.u32(kModelFormatVersion);
-  file.u32(static_cast<std::uint32_t>(m.num_vertices()));
-  file.u32(static_cast<std::uint32_t>(m.num_components()));
-  file.u32(static_cast<std::uint32_t>(m.triangles.size()));
-  file.u32(static_cast<std::uint32_t>(m.pose_names.size()));
+  write_header_start(file, m, kModelFormatVersion);
   file.u64(payload.buffer().size());
   file.u32(payload_crc(payload.buffer()));
-  auto& out = file.buffer();
-  out.insert(out.end(), payload.buffer().begin(), payload.buffer().end());
-  return std::move(out);
+  file.bytes(payload.buffer());
+  return std::move(file.buffer());
 }
 
-MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std::string& source_name) {
-  const Header h = read_header(bytes, source_name);
-  ByteReader in(bytes.subspan(kModelHeaderSize), source_name);
+std::vector<std::uint8_t> serialize_expression_model(const MorphableModel& m) {
+  ByteWriter payload;
+  payload.f32(m.total_variance);
+  payload.floats(m.mean.data(), m.mean.size());
+  payload.floats(m.stddev.data(), m.stddev.size());
+  for (Eigen::Index k = 0; k < m.basis.cols(); ++k) payload.quantized(m.basis.col(k).data(), m.basis.rows());
+  write_topology_and_poses(payload, m);
+  payload.names(m.expression_names);
+  for (Eigen::Index e = 0; e < m.expressions.cols(); ++e)
+    payload.quantized(m.expressions.col(e).data(), m.expressions.rows());
+
+  const auto& inflated = payload.buffer();
+  std::vector<std::uint8_t> stream(::compressBound(static_cast<uLong>(inflated.size())));
+  uLongf stream_size = static_cast<uLongf>(stream.size());
+  if (::compress2(stream.data(), &stream_size, inflated.data(), static_cast<uLong>(inflated.size()),
+                  Z_BEST_COMPRESSION) != Z_OK)
+    throw std::invalid_argument("cannot serialize model: zlib failed to compress the payload");
+  stream.resize(stream_size);
+
+  ByteWriter file;
+  write_header_start(file, m, kExpressionModelFormatVersion);
+  file.u32(static_cast<std::uint32_t>(m.num_expressions()));
+  file.u64(stream.size());
+  file.u64(inflated.size());
+  file.u32(payload_crc(stream));
+  file.u32(0);
+  file.bytes(stream);
+  return std::move(file.buffer());
+}
+
+/// The payload of either version; `in` is the (inflated) payload.
+MorphableModel read_payload(ByteReader& in, const Header& h, const std::string& source_name) {
   const Eigen::Index n3 = 3 * Eigen::Index{h.vertices};
   const Eigen::Index k = h.components;
+  const bool compact = h.version == kExpressionModelFormatVersion;
 
   MorphableModel m;
   m.total_variance = in.f32();
@@ -243,21 +390,53 @@ MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std:
   m.stddev.resize(k);
   in.floats(m.stddev.data(), h.components);
   m.basis.resize(n3, k);
-  in.floats(m.basis.data(), static_cast<std::uint64_t>(n3 * k));
+  if (compact)
+    for (Eigen::Index c = 0; c < k; ++c) in.quantized(m.basis.col(c).data(), n3, "a basis column");
+  else
+    in.floats(m.basis.data(), static_cast<std::uint64_t>(n3 * k));
   m.triangles.resize(h.triangles);
   for (Triangle& t : m.triangles)
     for (std::uint32_t& v : t) v = in.u32();
   for (std::int32_t& v : m.landmark_vertex) v = in.i32();
-  m.pose_names.reserve(h.poses);
-  for (std::uint32_t p = 0; p < h.poses; ++p) m.pose_names.push_back(in.string(in.u16()));
+  m.pose_names = in.names(h.poses);
   m.pose_coefficients.resize(k, h.poses);
   const auto coefficient_count = static_cast<std::uint64_t>(k) * h.poses;
-  if (in.remaining() != coefficient_count * 4)
+  if (!compact && in.remaining() != coefficient_count * 4)
     throw ModelFormatError(source_name + ": sizes inconsistent with the payload length (" +
                            std::to_string(in.remaining()) + " bytes left for " + std::to_string(coefficient_count) +
                            " pose coefficients)");
   in.floats(m.pose_coefficients.data(), coefficient_count);
+  if (compact) {
+    m.expression_names = in.names(h.expressions);
+    m.expressions.resize(n3, h.expressions);
+    for (Eigen::Index e = 0; e < m.expressions.cols(); ++e)
+      in.quantized(m.expressions.col(e).data(), n3, "an expression");
+    if (in.remaining() != 0)
+      throw ModelFormatError(source_name + ": " + std::to_string(in.remaining()) +
+                             " unexpected bytes after the expressions in the inflated payload");
+  }
+  return m;
+}
 
+}  // namespace
+
+std::vector<std::uint8_t> serialize_model(const MorphableModel& m) {
+  check_serializable(m);
+  return m.has_expressions() ? serialize_expression_model(m) : serialize_pose_model(m);
+}
+
+MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std::string& source_name) {
+  const Header h = read_header(bytes, source_name);
+  MorphableModel m;
+  if (h.version == kModelFormatVersion) {
+    ByteReader in(bytes.subspan(kModelHeaderSize), source_name);
+    m = read_payload(in, h, source_name);
+  } else {
+    const std::vector<std::uint8_t> inflated =
+        inflate_payload(bytes.subspan(kExpressionModelHeaderSize), h, source_name);
+    ByteReader in(inflated, source_name);
+    m = read_payload(in, h, source_name);
+  }
   validate_values(m, source_name);
   return m;
 }

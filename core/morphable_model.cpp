@@ -3,6 +3,15 @@
 #include <algorithm>
 
 namespace lipdrive {
+namespace {
+
+std::optional<int> index_of(const std::vector<std::string>& names, std::string_view name) {
+  const auto it = std::find(names.begin(), names.end(), name);
+  if (it == names.end()) return std::nullopt;
+  return static_cast<int>(it - names.begin());
+}
+
+}  // namespace
 
 Eigen::VectorXf MorphableModel::shape(const Eigen::VectorXf& alpha) const {
   return mean + basis * stddev.cwiseProduct(alpha);
@@ -15,10 +24,10 @@ Mesh MorphableModel::mesh(const Eigen::VectorXf& shape_vector) const {
   return m;
 }
 
-std::optional<int> MorphableModel::pose_index(std::string_view name) const {
-  const auto it = std::find(pose_names.begin(), pose_names.end(), name);
-  if (it == pose_names.end()) return std::nullopt;
-  return static_cast<int>(it - pose_names.begin());
+std::optional<int> MorphableModel::pose_index(std::string_view name) const { return index_of(pose_names, name); }
+
+std::optional<int> MorphableModel::expression_index(std::string_view name) const {
+  return index_of(expression_names, name);
 }
 
 int MorphableModel::mapped_landmark_count() const {

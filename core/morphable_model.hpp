@@ -1,4 +1,5 @@
-// A 3D morphable model (docs/method.md 2): S = mean + basis * (stddev .* alpha).
+// A 3D morphable model (docs/method.md 2): S = mean + basis * (stddev .* alpha), plus, for a
+// model with expression shapes (the ICT head), S = mean + basis * (stddev .* alpha) + expressions * w.
 #pragma once
 
 #include "core/landmarks.hpp"
@@ -32,16 +33,23 @@ struct MorphableModel {
   std::array<std::int32_t, kNumLandmarks> landmark_vertex{};  // iBUG index -> vertex, -1 = unmapped
   std::vector<std::string> pose_names;                        // the example poses the model was built from
   Eigen::MatrixXf pose_coefficients;                          // K x P: column p = alpha of pose p
+  // An identity + expression model (docs/method.md 2): the components above are the identity
+  // (alpha, frozen per performer) and these the expression shapes (weights w in [0, 1]).
+  Eigen::MatrixXf expressions;                // 3N x E: column e = displacement of shape e at weight 1 (mm)
+  std::vector<std::string> expression_names;  // E names (ARKit-style, as the source model spells them)
 
   int num_vertices() const { return static_cast<int>(mean.size() / 3); }
   int num_components() const { return static_cast<int>(stddev.size()); }
   int num_poses() const { return static_cast<int>(pose_names.size()); }
+  int num_expressions() const { return static_cast<int>(expression_names.size()); }
+  bool has_expressions() const { return !expression_names.empty(); }
 
   /// Shape vector for coefficients alpha (in units of each component's stddev).
   Eigen::VectorXf shape(const Eigen::VectorXf& alpha) const;
   /// The mesh of a shape vector.
   Mesh mesh(const Eigen::VectorXf& shape_vector) const;
   std::optional<int> pose_index(std::string_view name) const;
+  std::optional<int> expression_index(std::string_view name) const;
   int mapped_landmark_count() const;
 };
 

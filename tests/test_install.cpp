@@ -23,7 +23,7 @@ using lipdrive::test::CommandRun;
 using lipdrive::test::run_command;
 
 // The developer commands, as `lipdrive-dev` names them.
-const std::vector<std::string> kDeveloperCommands = {"fixture", "head", "fit-demo", "generate-head"};
+const std::vector<std::string> kDeveloperCommands = {"fixture", "head", "fit-demo", "generate-head", "ict"};
 
 TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
   const fs::path root = fs::temp_directory_path() / ("lipdrive_test_install_" + std::to_string(::getpid()));
@@ -38,7 +38,7 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
   ASSERT_TRUE(manifest) << "cmake --install writes install_manifest.txt into the build folder";
   std::vector<fs::path> executables;
   int files = 0;
-  bool has_lipdrive = false, has_unit = false, has_model = false;
+  bool has_lipdrive = false, has_unit = false, has_model = false, has_ict = false, has_ict_licence = false;
   // The manifest names the files as installed, without DESTDIR.
   for (std::string line; std::getline(manifest, line);) {
     const fs::path file = root / fs::path(line).relative_path();
@@ -51,11 +51,15 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
     has_lipdrive = has_lipdrive || file == root / "opt/lipdrive/bin/lipdrive";
     has_unit = has_unit || file.filename() == "lipdrive.service";
     has_model = has_model || file.filename() == "default.lpm";
+    has_ict = has_ict || file.filename() == "ict_face_light.lpm";
+    has_ict_licence = has_ict_licence || file.filename() == "ICT-FaceKit-LICENSE";
   }
   EXPECT_GT(files, 5);
   EXPECT_TRUE(has_lipdrive);
   EXPECT_TRUE(has_unit);
   EXPECT_TRUE(has_model);
+  EXPECT_TRUE(has_ict) << "the ICT head";
+  EXPECT_TRUE(has_ict_licence) << "the ICT head ships with its MIT notice";
   ASSERT_EQ(executables.size(), 1u) << "the one installed executable is lipdrive";
   EXPECT_EQ(executables.front().filename(), "lipdrive");
   fs::remove_all(root);
@@ -74,7 +78,7 @@ TEST(Install, LipdriveOffersNoDeveloperCommand) {
 
   const CommandRun dev_help = run_command(std::string(LIPDRIVE_DEV_BINARY) + " --help");
   ASSERT_EQ(dev_help.exit_code, 0) << dev_help.output;
-  for (const char* command : {"fixture", "head", "fit-demo"})
+  for (const char* command : {"fixture", "head", "fit-demo", "ict"})
     EXPECT_THAT(dev_help.output, HasSubstr(std::string("  ") + command + " "));
 }
 

@@ -185,8 +185,8 @@ TEST(ModelFormat, RejectsBadMagicAndVersion) {
   wrong_magic[3] = 'X';
   EXPECT_THAT(format_error(wrong_magic), AllOf(StartsWith(kSource), HasSubstr("not a lipdrive model")));
   EXPECT_THAT(format_error({'P', 'K'}), HasSubstr("not a lipdrive model"));
-  put_u32(bytes, 8, 2);
-  EXPECT_THAT(format_error(bytes), AllOf(StartsWith(kSource), HasSubstr("unsupported format version 2")));
+  put_u32(bytes, 8, 3);
+  EXPECT_THAT(format_error(bytes), AllOf(StartsWith(kSource), HasSubstr("unsupported format version 3")));
 }
 
 TEST(ModelFormat, RejectsTrailingBytes) {
@@ -248,28 +248,108 @@ TEST(ModelFormat, RejectsOutOfRangeIndicesAndNonFiniteNumbers) {
   EXPECT_THAT(format_error(zero_stddev), HasSubstr("stddev of component 1 is not positive"));
 }
 
+// An identity + expression model: written as version 2 (zlib, 16-bit columns).
+MorphableModel make_expression_model() {
+  MorphableModel m = make_model();
+  m.pose_names.clear();
+  m.pose_coefficients.resize(3, 0);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> uniform(-20.f, 20.f);
+  m.expressions.resize(m.mean.size(), 2);
+  for (Eigen::Index i = 0; i < m.expressions.size(); ++i) m.expressions.data()[i] = uniform(rng);
+  m.expressions.col(1).head(6).setZero();  // a shape that leaves vertices 0 and 1 alone
+  m.expression_names = {"jawOpen", "mouthSmile_L"};
+  return m;
+}
+
+// The largest error the 16-bit columns allow: half a step of max |column| / 32767.
+float half_step(const Eigen::MatrixXf& matrix) { return 0.5f * matrix.cwiseAbs().maxCoeff() / 32767.0f; }
+
+void put_u64(std::vector<std::uint8_t>& bytes, std::size_t offset, std::uint64_t v) {
+  for (int i = 0; i < 8; ++i) bytes[offset + i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+
+TEST(ModelFormat, AnExpressionModelRoundTripsWithinHalfAStep) {
+  const MorphableModel m = make_expression_model();
+  EXPECT_EQ(model_format_version(m), kExpressionModelFormatVersion);
+  EXPECT_EQ(model_format_version(make_model()), kModelFormatVersion);
+  const auto bytes = serialize_model(m);
+  EXPECT_EQ(get_u64(bytes, 32), bytes.size() - kExpressionModelHeaderSize);
+  const MorphableModel back = deserialize_model(bytes, kSource);
+  EXPECT_EQ(back.expression_names, m.expression_names);
+  EXPECT_EQ(back.mean, m.mean);  // f32, exact
+  EXPECT_EQ(back.stddev, m.stddev);
+  EXPECT_EQ(back.triangles, m.triangles);
+  EXPECT_EQ(back.landmark_vertex, m.landmark_vertex);
+  EXPECT_EQ(back.num_poses(), 0);
+  ASSERT_EQ(back.expressions.rows(), m.expressions.rows());
+  ASSERT_EQ(back.expressions.cols(), 2);
+  for (Eigen::Index c = 0; c < 2; ++c)
+    EXPECT_LE((back.expressions.col(c) - m.expressions.col(c)).cwiseAbs().maxCoeff(),
+              half_step(m.expressions.col(c)) * 1.0001f);
+  EXPECT_LE((back.basis - m.basis).cwiseAbs().maxCoeff(), half_step(m.basis) * 1.0001f);
+  EXPECT_TRUE(back.expressions.col(1).head(6).isZero(0));  // zero stays exactly zero
+  EXPECT_EQ(*back.expression_index("mouthSmile_L"), 1);
+  EXPECT_FALSE(back.expression_index("mouthSmileLeft"));
+  // Written again, the decoded model encodes to the same bytes.
+  EXPECT_EQ(serialize_model(back), bytes);
+}
+
+TEST(ModelFormat, RejectsAnExpressionModelWhoseInflatedSizeIsWrong) {
+  const auto bytes = serialize_model(make_expression_model());
+  auto larger = bytes;
+  put_u64(larger, 40, get_u64(bytes, 40) + 1);  // header is outside the checksum
+  EXPECT_THAT(format_error(larger), AllOf(StartsWith(kSource), HasSubstr("does not inflate to")));
+  auto huge = bytes;
+  put_u64(huge, 40, 1ull << 40);  // never allocated
+  EXPECT_THAT(format_error(huge), HasSubstr("more than the sizes allow"));
+  auto more_expressions = bytes;
+  put_u32(more_expressions, 28, 3);
+  EXPECT_THAT(format_error(more_expressions), HasSubstr("sizes inconsistent with the payload length"));
+  auto truncated = bytes;
+  truncated.resize(50);
+  EXPECT_THAT(format_error(truncated), HasSubstr("truncated"));
+}
+
+TEST(ModelFormat, RejectsDuplicateExpressionNames) {
+  MorphableModel m = make_expression_model();
+  m.expression_names = {"jawOpen", "jawOpen"};
+  EXPECT_THAT(format_error(serialize_model(m)), HasSubstr("expression name \"jawOpen\" appears twice"));
+}
+
+// Flips 1-4 random bytes per trial; with `reseal_odd`, odd trials get a matching checksum (v1
+// header) so the content validators see the edit. Every rejection must name the source;
+// returns the trials whose corruption was accepted.
+std::vector<int> accepted_corruptions(const std::vector<std::uint8_t>& original, unsigned seed, int trials,
+                                      bool reseal_odd) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<std::size_t> position(0, original.size() - 1);
+  std::uniform_int_distribution<int> flip(1, 255);
+  std::vector<int> accepted;
+  for (int trial = 0; trial < trials; ++trial) {
+    auto bytes = original;
+    for (int f = 0; f < 1 + trial % 4; ++f) bytes[position(rng)] ^= static_cast<std::uint8_t>(flip(rng));
+    if (reseal_odd && trial % 2 == 1) reseal(bytes);
+    try {
+      deserialize_model(bytes, kSource);
+      accepted.push_back(trial);
+    } catch (const ModelFormatError& e) {
+      EXPECT_THAT(e.what(), StartsWith(kSource));
+    }
+  }
+  return accepted;
+}
+
+TEST(ModelFormat, RandomCorruptionOfAnExpressionModelNeverEscapesTheValidator) {
+  EXPECT_THAT(accepted_corruptions(serialize_model(make_expression_model()), 99, 2000, false), ::testing::IsEmpty());
+}
+
 // Fuzz: random corruption, with and without a matching checksum, must end in a
 // ModelFormatError or a valid model; never a crash (run under ASan to be sure).
 TEST(ModelFormat, RandomCorruptionNeverEscapesTheValidator) {
-  const auto original = serialize_model(make_model());
-  std::mt19937 rng(1234);
-  std::uniform_int_distribution<std::size_t> position(0, original.size() - 1);
-  std::uniform_int_distribution<int> flip(1, 255);
-  for (int trial = 0; trial < 4000; ++trial) {
-    auto bytes = original;
-    const int flips = 1 + trial % 4;
-    for (int f = 0; f < flips; ++f) bytes[position(rng)] ^= static_cast<std::uint8_t>(flip(rng));
-    const bool sealed = trial % 2 == 1;
-    if (sealed) reseal(bytes);
-    try {
-      deserialize_model(bytes, kSource);
-    } catch (const ModelFormatError& e) {
-      EXPECT_THAT(e.what(), StartsWith(kSource));
-      continue;
-    }
-    // Accepted: only possible when the checksum was recomputed over changed numbers.
-    EXPECT_TRUE(sealed) << "corruption accepted in trial " << trial;
-  }
+  // Accepted: only possible when the checksum was recomputed over changed numbers.
+  for (const int trial : accepted_corruptions(serialize_model(make_model()), 1234, 4000, true))
+    EXPECT_EQ(trial % 2, 1) << "corruption accepted in trial " << trial;
 }
 
 class ModelFilesTest : public ::testing::Test {

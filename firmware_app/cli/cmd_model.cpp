@@ -119,11 +119,13 @@ void run_build(const BuildArgs& args) {
 void print_info(const fs::path& file) {
   const MorphableModel model = load_model_file(file);
   fmt::print("file:           {}\n", file.string());
-  fmt::print("format version: {}\n", kModelFormatVersion);
+  fmt::print("format version: {}\n", model_format_version(model));
   fmt::print("vertices:       {}\n", model.num_vertices());
   fmt::print("triangles:      {}\n", model.triangles.size());
-  fmt::print("components:     {}\n", model.num_components());
+  fmt::print("components:     {}{}\n", model.num_components(), model.has_expressions() ? " (identity)" : "");
   fmt::print("poses:          {}\n", model.num_poses());
+  if (model.has_expressions())
+    fmt::print("expressions:    {}: {}\n", model.num_expressions(), fmt::join(model.expression_names, " "));
 
   const Eigen::VectorXd fractions = variance_fractions(model);
   fmt::print("\n{:>9}  {:>10}  {:>12}\n", "component", "variance %", "cumulative %");
@@ -159,14 +161,25 @@ struct RenderArgs {
   fs::path out;
 };
 
+// The shape of a pose name: an example pose, or for a model with expression shapes "neutral"
+// (the mean) or an expression at full weight.
+Eigen::VectorXf named_shape(const MorphableModel& model, const std::string& name, const fs::path& file) {
+  if (const auto pose = model.pose_index(name)) return model.shape(model.pose_coefficients.col(*pose));
+  if (model.has_expressions()) {
+    if (name == "neutral") return model.mean;
+    if (const auto expression = model.expression_index(name)) return model.mean + model.expressions.col(*expression);
+    throw CommandError(fmt::format("{}: no pose \"{}\"; the poses are: neutral {}", file.string(), name,
+                                   fmt::join(model.expression_names, " ")),
+                       kExitDataError);
+  }
+  throw CommandError(
+      fmt::format("{}: no pose \"{}\"; the poses are: {}", file.string(), name, fmt::join(model.pose_names, " ")),
+      kExitDataError);
+}
+
 void render(const RenderArgs& args) {
   const MorphableModel model = load_model_file(args.model);
-  const auto pose = model.pose_index(args.pose);
-  if (!pose)
-    throw CommandError(fmt::format("{}: no pose \"{}\"; the poses are: {}", args.model.string(), args.pose,
-                                   fmt::join(model.pose_names, " ")),
-                       kExitDataError);
-  const Mesh mesh = model.mesh(model.shape(model.pose_coefficients.col(*pose)));
+  const Mesh mesh = model.mesh(named_shape(model, args.pose, args.model));
   const cv::Mat image = render_mesh(mesh, RenderView{args.yaw_degrees, cv::Size(args.size, args.size)});
   bool written = false;
   try {
@@ -204,7 +217,9 @@ void add_render_command(CLI::App& model) {
   auto args = std::make_shared<RenderArgs>();
   auto* cmd = model.add_subcommand("render", "Render one pose of a model file to a PNG");
   cmd->add_option("--model", args->model, "Model file (.lpm)")->capture_default_str();
-  cmd->add_option("--pose", args->pose, "Pose name (see `lipdrive model info`)")->capture_default_str();
+  cmd->add_option("--pose", args->pose,
+                  "Pose name (see `lipdrive model info`); for a model with expressions also an expression")
+      ->capture_default_str();
   cmd->add_option("--yaw", args->yaw_degrees, "Head rotation in degrees: 0 frontal, 90 right profile")
       ->capture_default_str();
   cmd->add_option("--size", args->size, "Image width and height in pixels")
