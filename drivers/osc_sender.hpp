@@ -1,14 +1,15 @@
-// OSC bundles over UDP: liblo builds and serialises them, a UdpSocket sends them without
-// blocking.
+// OSC bundles over UDP: liblo lays a bundle out once, every frame writes its values into
+// those bytes, a UdpSocket sends them without blocking. Nothing allocates per frame.
 //
-// Thread model: one owner thread. liblo allocates each message of a bundle on the heap, so
-// an owner in a bounded-latency loop gives the sender a thread of its own.
+// Thread model: an OscBundle and an OscSender each have one owner thread.
 #pragma once
 
 #include "drivers/udp_socket.hpp"
 
 #include <cstdint>
+#include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace lipdrive {
@@ -20,23 +21,48 @@ struct OscTimeTag {
 };
 OscTimeTag osc_time_tag(std::int64_t unix_time_ns);
 
+/// A bundle whose layout is fixed when it is made: each message has one argument of a fixed
+/// type, a string one of a fixed length. liblo builds and serialises it once, here; setting a
+/// value afterwards writes only that argument's bytes (OSC 1.0: 32-bit big-endian numbers,
+/// strings NUL-padded to a multiple of 4), so a frame's bundle costs no allocation and its
+/// bytes are exactly what liblo would serialise for the same values (tests/test_osc.cpp).
+class OscBundle {
+ public:
+  enum class Type : char { kInt32 = 'i', kFloat = 'f', kString = 's' };
+  struct Message {
+    std::string address;
+    Type type = Type::kFloat;
+    std::size_t string_length = 0;  // kString: the length of every value it will carry
+  };
+  /// Throws std::invalid_argument when the bundle would not fit in one UDP datagram.
+  explicit OscBundle(std::span<const Message> messages);
+
+  void set_time_tag(OscTimeTag time_tag);
+  /// The value of message `index`, which must have the matching type; a string is cut or
+  /// padded with spaces to the message's length.
+  void set(std::size_t index, float value);
+  void set(std::size_t index, std::int32_t value);
+  void set(std::size_t index, std::string_view value);
+
+  std::span<const std::uint8_t> bytes() const { return bytes_; }
+  std::size_t size() const { return argument_offsets_.size(); }
+
+ private:
+  std::vector<std::uint8_t> bytes_;
+  std::vector<std::size_t> argument_offsets_;
+  std::vector<Message> messages_;
+};
+
 class OscSender {
  public:
   /// Resolves `host` (a name or a numeric address) once, here. Throws UdpError.
   OscSender(const std::string& host, int port);
-  ~OscSender();
   OscSender(const OscSender&) = delete;
   OscSender& operator=(const OscSender&) = delete;
 
-  /// Starts a new bundle (dropping one not sent).
-  void begin_bundle(OscTimeTag time_tag);
-  void add(const char* address, float value);
-  void add(const char* address, std::int32_t value);
-  void add(const char* address, const char* value);
-  /// Sends the bundle as one datagram, without blocking. False when it is larger than a UDP
-  /// datagram can be or the kernel refused it (errno: EAGAIN for a full send buffer, ...).
-  bool send_bundle();
-  std::size_t last_size() const { return last_size_; }
+  /// Sends the bundle as one datagram, without blocking. False when the kernel refused it
+  /// (errno: EAGAIN for a full send buffer, ...).
+  bool send(const OscBundle& bundle);
 
   /// "osc udp 127.0.0.1:9000".
   std::string describe() const { return "osc udp " + destination_.describe(); }
@@ -44,9 +70,6 @@ class OscSender {
  private:
   UdpEndpoint destination_;
   UdpSocket socket_;
-  void* bundle_ = nullptr;            // lo_bundle
-  std::vector<std::uint8_t> buffer_;  // one datagram's worth, allocated once
-  std::size_t last_size_ = 0;
 };
 
 }  // namespace lipdrive

@@ -1,5 +1,6 @@
 // OSC: the address scheme, the derived ARKit weights, the sender against a liblo server in
 // the test, and the control receiver against liblo's sender.
+#include "allocation_counter.hpp"
 #include "core/arkit_from_signals.hpp"
 #include "core/osc_addresses.hpp"
 #include "drivers/osc_receiver.hpp"
@@ -7,6 +8,7 @@
 #include "osc_peers.hpp"
 #include "serial_peers.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <lo/lo.h>
 
@@ -14,6 +16,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -82,15 +88,22 @@ TEST(OscTimeTag, NtpSecondsAndFraction) {
   EXPECT_NEAR(static_cast<double>(osc_time_tag(unix_ns).seconds), static_cast<double>(now.sec), 1.0);
 }
 
+std::vector<OscBundle::Message> three_messages() {
+  return {{"/lipdrive/jaw", OscBundle::Type::kFloat},
+          {"/found", OscBundle::Type::kInt32},
+          {"/lipdrive/timecode", OscBundle::Type::kString, 11}};
+}
+
 TEST(OscSender, OneBundlePerSendWithItsTimeTag) {
   test::OscCapture capture;
   OscSender sender("localhost", capture.port());
+  OscBundle bundle(three_messages());
   for (int i = 0; i < 5; ++i) {
-    sender.begin_bundle(osc_time_tag(1'700'000'000'000'000'000 + i * 16'666'667LL));
-    sender.add("/lipdrive/jaw", 0.25f * static_cast<float>(i));
-    sender.add("/found", std::int32_t{1});
-    sender.add("/lipdrive/timecode", "10:00:00:00");
-    ASSERT_TRUE(sender.send_bundle()) << std::strerror(errno);
+    bundle.set_time_tag(osc_time_tag(1'700'000'000'000'000'000 + i * 16'666'667LL));
+    bundle.set(0, 0.25f * static_cast<float>(i));
+    bundle.set(1, std::int32_t{1});
+    bundle.set(2, std::string_view(i % 2 ? "10:00:00:01" : "10:00:00:0"));  // a short value is padded
+    ASSERT_TRUE(sender.send(bundle)) << std::strerror(errno);
   }
   ASSERT_TRUE(test::eventually([&] { return capture.bundles().size() == 5; }, 3s));
   const auto bundles = capture.bundles();
@@ -103,9 +116,73 @@ TEST(OscSender, OneBundlePerSendWithItsTimeTag) {
     EXPECT_EQ(b.messages[0].types, "f");
     EXPECT_FLOAT_EQ(b.messages[0].number, 0.25f * static_cast<float>(i));
     EXPECT_EQ(b.messages[1].types, "i");
-    EXPECT_EQ(b.messages[2].text, "10:00:00:00");
+    EXPECT_EQ(b.messages[2].text, i % 2 ? "10:00:00:01" : "10:00:00:0 ");
   }
   EXPECT_TRUE(capture.loose_messages().empty());
+}
+
+// The bytes a prebuilt bundle carries are the bytes liblo serialises for a bundle built afresh
+// with the same values, whatever the values.
+TEST(OscBundle, ItsBytesAreLiblosSerialisationOfTheSameValues) {
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> number(-1e6f, 1e6f);
+  std::uniform_int_distribution<std::int32_t> integer(std::numeric_limits<std::int32_t>::min(),
+                                                      std::numeric_limits<std::int32_t>::max());
+  std::vector<OscBundle::Message> layout = three_messages();
+  layout.push_back({"/a/longer/address/of/seventeen", OscBundle::Type::kFloat});
+  layout.push_back({"/s4", OscBundle::Type::kString, 4});
+  OscBundle bundle(layout);
+  for (int round = 0; round < 200; ++round) {
+    const OscTimeTag tag{static_cast<std::uint32_t>(integer(random)), static_cast<std::uint32_t>(integer(random))};
+    const float jaw = number(random), other = number(random);
+    const std::int32_t found = integer(random);
+    const std::string timecode = fmt::format("{:02}:{:02}:{:02}:{:02}", round % 24, round % 60, round % 7, round % 30);
+    const std::string four = fmt::format("{:04}", round);
+    bundle.set_time_tag(tag);
+    bundle.set(0, jaw);
+    bundle.set(1, found);
+    bundle.set(2, timecode);
+    bundle.set(3, other);
+    bundle.set(4, four);
+
+    lo_bundle fresh = lo_bundle_new(lo_timetag{tag.seconds, tag.fraction});
+    const auto add = [&](const char* address, auto fill) {
+      lo_message m = lo_message_new();
+      fill(m);
+      lo_bundle_add_message(fresh, address, m);
+    };
+    add("/lipdrive/jaw", [&](lo_message m) { lo_message_add_float(m, jaw); });
+    add("/found", [&](lo_message m) { lo_message_add_int32(m, found); });
+    add("/lipdrive/timecode", [&](lo_message m) { lo_message_add_string(m, timecode.c_str()); });
+    add("/a/longer/address/of/seventeen", [&](lo_message m) { lo_message_add_float(m, other); });
+    add("/s4", [&](lo_message m) { lo_message_add_string(m, four.c_str()); });
+    std::vector<std::uint8_t> expected(lo_bundle_length(fresh));
+    std::size_t written = 0;
+    lo_bundle_serialise(fresh, expected.data(), &written);
+    lo_bundle_free_recursive(fresh);
+    ASSERT_EQ(written, expected.size());
+    const auto bytes = bundle.bytes();
+    ASSERT_EQ(std::vector<std::uint8_t>(bytes.begin(), bytes.end()), expected) << "round " << round;
+  }
+}
+
+TEST(OscBundle, SettingAndSendingAllocateNothing) {
+  test::OscCapture capture;
+  OscSender sender("localhost", capture.port());
+  OscBundle bundle(three_messages());
+  test::count_allocations_on_this_thread(true);
+  const long before = test::allocation_count();
+  for (int i = 0; i < 100; ++i) {
+    bundle.set_time_tag(osc_time_tag(i * 16'666'667LL));
+    bundle.set(0, static_cast<float>(i));
+    bundle.set(1, std::int32_t{i});
+    bundle.set(2, std::string_view("10:00:00:00"));
+    sender.send(bundle);
+  }
+  const long allocations = test::allocation_count() - before;
+  test::count_allocations_on_this_thread(false);
+  EXPECT_EQ(allocations, 0);
+  EXPECT_TRUE(test::eventually([&] { return capture.bundles().size() == 100; }, 3s));
 }
 
 TEST(OscSender, AHostThatDoesNotResolveIsAnError) {

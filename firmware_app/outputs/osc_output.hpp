@@ -6,8 +6,9 @@
 // (drivers/clock.hpp wall_time_ns(): plus the offset between CLOCK_REALTIME and
 // CLOCK_MONOTONIC at sending), in NTP format.
 //
-// Thread model: that of every SenderOutput (sender_output.hpp); liblo allocates each message,
-// so the bundles are built on the sender thread, never on the pipeline's output thread.
+// Thread model: that of every SenderOutput (sender_output.hpp). The two bundle layouts (with
+// and without the timecode) are built once, here; the sender thread writes each frame's values
+// into one of them and sends it, allocating nothing.
 #pragma once
 
 #include "drivers/osc_sender.hpp"
@@ -31,9 +32,11 @@ class OscOutput : public SenderOutput {
   bool send(const DriveFrame& frame) override;
   std::string failure() const override { return failure_; }
 
+  /// Writes the frame into `bundle` (laid out by bundle_layout with or without the timecode).
+  void fill(OscBundle& bundle, const DriveFrame& frame, bool with_timecode) const;
+
   std::vector<int> channel_indices_;
-  std::vector<std::string> channel_addresses_;  // "/lipdrive/<channel>", per index above
-  std::vector<std::string> arkit_addresses_;    // "/jawOpen", ... (core/arkit_from_signals.hpp)
+  OscBundle with_timecode_, without_timecode_;  // the sender thread's
   OscSender sender_;                            // the sender thread's
   std::string failure_;                         // the sender thread's
 };
