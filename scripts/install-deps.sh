@@ -12,6 +12,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   socat ffmpeg systemd clang-format
   libola-dev ola liblo-dev liblo-tools libltc-dev
+  lintian
 )
 
 missing=()
