@@ -13,6 +13,7 @@ packages=(
   socat ffmpeg systemd clang-format
   libola-dev ola liblo-dev liblo-tools libltc-dev
   lintian
+  libasound2-dev libaubio-dev libavformat-dev libavcodec-dev libswresample-dev libavutil-dev
 )
 
 missing=()

@@ -59,7 +59,8 @@ bool is_image_file_name(const std::filesystem::path& path) {
   return std::ranges::find(kExtensions, lower_case(path.extension().string())) != kExtensions.end();
 }
 
-SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options) : options_(std::move(options)) {
+SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options, ReplayClock* clock)
+    : options_(std::move(options)), clock_(clock) {
   const auto& input = options_.input;
   std::error_code ec;
   if (!std::filesystem::exists(input, ec)) throw SourceError(input.string() + ": no such file or folder");
@@ -97,6 +98,11 @@ void SimulatedCamera::open_video() {
 
 std::string SimulatedCamera::describe() const { return "sim:" + options_.input.string(); }
 
+double SimulatedCamera::duration_s() const {
+  const auto frames = kind_ == Kind::kVideo ? expected_frames_ : static_cast<std::int64_t>(images_.size());
+  return static_cast<double>(frames) / frame_rate_;
+}
+
 void SimulatedCamera::rewind() {
   position_ = 0;
   // Reopening is exact where seeking to frame 0 is not for every codec.
@@ -125,10 +131,29 @@ std::optional<GrabStatus> SimulatedCamera::injected_outage(std::chrono::millisec
   }
   sleep_until_ns(outage_until_ns_);
   outage_until_ns_ = 0;
+  if (clock_ && start_ns_ != 0) {
+    skip_frames_due();
+    return std::nullopt;
+  }
   // Resume at the recording's pace from now on, not with a burst of overdue frames.
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
   start_ns_ = monotonic_ns() - static_cast<std::int64_t>(sequence_) * period_ns;
   return std::nullopt;
+}
+
+void SimulatedCamera::skip_frames_due() {
+  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
+  const auto due = static_cast<std::uint64_t>(std::max<std::int64_t>(monotonic_ns() - start_ns_, 0) / period_ns);
+  Frame skipped;
+  while (sequence_ < due) {
+    GrabStatus status = read_frame(skipped);
+    if (status == GrabStatus::kEndOfStream && options_.loop && position_ > 0) {
+      rewind();
+      status = read_frame(skipped);
+    }
+    if (status == GrabStatus::kEndOfStream) return;  // grab() finds the end itself
+    ++sequence_;                                     // never delivered: the gap in the sequence numbers shows the loss
+  }
 }
 
 GrabStatus SimulatedCamera::inject_frame_faults() {
@@ -156,7 +181,7 @@ GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout
   if (ended_) return GrabStatus::kEndOfStream;
   if (const auto outage = injected_outage(timeout)) return *outage;
   if (options_.real_time) {
-    if (start_ns_ == 0) start_ns_ = monotonic_ns();
+    if (start_ns_ == 0) start_ns_ = clock_ ? clock_->start_ns() : monotonic_ns();
     if (!wait_until_due(timeout)) return GrabStatus::kTimeout;
   }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "drivers/frame_source.hpp"
+#include "sim/replay_clock.hpp"
 
 #include <opencv2/core/mat.hpp>
 #include <opencv2/videoio.hpp>
@@ -46,7 +47,12 @@ class SimulatedCamera : public FrameSource {
  public:
   /// Opens the input. Throws SourceError naming the path when it is missing, an empty
   /// or unreadable folder, or a file that is neither a decodable image nor a video.
-  explicit SimulatedCamera(SimulatedCameraOptions options);
+  /// `clock` (not owned; it outlives the camera): the real-time replay keeps to this timeline,
+  /// shared with the clip's simulated sound (sim/simulated_audio.hpp): frame n is due at its
+  /// start + n periods, and after an injected outage the replay goes on with the frame due
+  /// then, as a camera that comes back shows the present. Without it the replay starts at the
+  /// first grab() and resumes after an outage where it stopped.
+  explicit SimulatedCamera(SimulatedCameraOptions options, ReplayClock* clock = nullptr);
 
   /// Delivers the next frame. A video whose decoding stops before the container's frame
   /// count yields kCorrupt once (details in last_error()), then ends; an undecodable
@@ -55,6 +61,9 @@ class SimulatedCamera : public FrameSource {
   GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override;
   double frame_rate() const override { return frame_rate_; }
   std::string describe() const override;
+  /// One pass through the recording at the replay rate, in seconds (a looping replay restarts
+  /// this often); 0 when a video does not say how many frames it has.
+  double duration_s() const;
 
   /// Images (a folder or a single one): every frame is unrelated to the last, so a tracker
   /// detects the face afresh in each; a video's frames follow one another.
@@ -77,8 +86,11 @@ class SimulatedCamera : public FrameSource {
   std::optional<GrabStatus> injected_outage(std::chrono::milliseconds timeout);
   // Fault injection on a frame just read: kFrame, or what the fault makes of it.
   GrabStatus inject_frame_faults();
+  // With a shared clock, after an outage: reads past the frames that fell due meanwhile.
+  void skip_frames_due();
 
   SimulatedCameraOptions options_;
+  ReplayClock* clock_;
   Kind kind_;
   std::string video_path_;  // `source` of video frames
   std::vector<std::filesystem::path> images_;

@@ -3,6 +3,7 @@
 // the camera frame was captured, the take's first line names the first row's timecode, the
 // Modbus map carries it; the system clock at 29.97 drop-frame counts up across a take; LTC
 // absent or garbled is a status-line warning.
+#include "command_run.hpp"
 #include "core/timecode.hpp"
 #include "daemon_process.hpp"
 #include "drivers/modbus_link.hpp"
@@ -181,6 +182,31 @@ TEST(DaemonTimecode, AbsentOrGarbledLtcIsAStatusLineWarning) {
     EXPECT_EQ(take.first_line,
               "# timecode_start none at " + std::string(keys.find("30") != std::string::npos ? "30" : "25") + " fps");
   }
+}
+
+TEST(DaemonTimecode, LtcFromASoundCardThatIsAbsentLeavesFramesUnstampedAndCheckConfigNamesIt) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  const test::TempDir dir;
+  const fs::path config = dir.path() / "lipdrive.toml";
+  std::ofstream(config) << config_with("source = \"ltc\"\nltc_input = \"alsa\"\ndevice = \"lipdrive_no_such_device\"",
+                                       dir.path() / "takes", test::free_port());
+  const test::CommandRun check = test::run_command(fmt::format("{} check-config {}", LIPDRIVE_BINARY, config.string()));
+  EXPECT_EQ(check.exit_code, 78) << check.output;
+  EXPECT_NE(check.output.find("key timecode.device: alsa:lipdrive_no_such_device: cannot open the capture device"),
+            std::string::npos)
+      << check.output;
+
+  test::DaemonProcess daemon(config, dir.path() / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
+  EXPECT_NE(daemon.log().find("LTC input alsa:lipdrive_no_such_device: cannot open the capture device"),
+            std::string::npos)
+      << daemon.log();
+  EXPECT_TRUE(daemon.wait_for_log("LTC input alsa:lipdrive_no_such_device lost", 5s)) << daemon.log();
+  daemon.signal(SIGTERM);
+  ASSERT_EQ(daemon.wait(2000ms), 0) << daemon.log();
+  const Take take = read_take(dir.path() / "takes");
+  EXPECT_GT(take.timecodes.size(), 20u) << "the video runs on";
+  EXPECT_TRUE(std::ranges::all_of(take.timecodes, [](const std::string& t) { return t.empty(); }));
 }
 
 }  // namespace

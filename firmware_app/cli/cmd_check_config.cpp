@@ -1,6 +1,7 @@
 // `lipdrive check-config FILE`: validate a configuration file without starting anything.
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/config/config.hpp"
+#include "firmware_app/config/factories.hpp"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -11,10 +12,12 @@ namespace lipdrive {
 
 void add_check_config_command(CLI::App& app) {
   auto file = std::make_shared<std::filesystem::path>();
-  CLI::App* check = app.add_subcommand("check-config", "Validate a configuration file without starting anything");
+  CLI::App* check = app.add_subcommand(
+      "check-config",
+      "Validate a configuration file without starting anything (audio devices are opened once to check them)");
   check->add_option("FILE", *file, "configuration file")->required();
   check->callback([file] {
-    load_config(*file);
+    check_audio_inputs(load_config(*file));
     fmt::print("{}: ok\n", file->string());
   });
 }

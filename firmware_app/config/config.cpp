@@ -440,6 +440,20 @@ void read_osc_outputs(std::vector<Section> outputs, Config& config) {
   }
 }
 
+/// The keys of an ALSA capture input (device, channels, channel) at `sample_rate`; blocks of
+/// 10 ms. The device is opened when the daemon starts, not here: a USB microphone may be
+/// plugged in later (`lipdrive check-config` tries it).
+void read_alsa_input(Section& section, int sample_rate, AlsaCaptureOptions& alsa) {
+  alsa.device = section.string("device", alsa.device);
+  if (alsa.device.empty()) section.fail("device", "must name an ALSA capture device (e.g. \"default\", \"hw:1,0\")");
+  alsa.channels = section.integer("channels", alsa.channels, 1, 8);
+  alsa.channel = section.integer("channel", alsa.channel, 0, 7);
+  if (alsa.channel >= alsa.channels)
+    section.fail("channel", fmt::format("must be below channels ({}), got {}", alsa.channels, alsa.channel));
+  alsa.sample_rate = sample_rate;
+  alsa.period_frames = std::min(sample_rate / 100, kMaxAudioBlockFrames);
+}
+
 void read_timecode(Section timecode, Config& config) {
   Config::Timecode& t = config.timecode;
   const std::string source = timecode.one_of("source", "none", {"none", "clock", "ltc"});
@@ -451,8 +465,9 @@ void read_timecode(Section timecode, Config& config) {
     t.rate = *rate;
   else
     timecode.fail("fps", fmt::format("must be 24, 25, 29.97 (drop-frame) or 30, got {}", fps));
-  // Where LTC comes from; this build decodes it from the generated signal only.
-  timecode.one_of("ltc_input", "sim", {"sim"});
+  // Where LTC comes from: a sound card input or the generated signal.
+  t.input = timecode.one_of("ltc_input", "sim", {"sim", "alsa"}) == "alsa" ? Config::Timecode::Input::kAlsa
+                                                                           : Config::Timecode::Input::kSim;
   const std::string start = timecode.string("sim_start", "10:00:00:00");
   const auto label = parse_timecode(start);
   if (!label || !frame_from_timecode(*label, t.rate))
@@ -470,6 +485,7 @@ void read_timecode(Section timecode, Config& config) {
   else
     timecode.fail("sim_fps", fmt::format("must be 24, 25, 29.97 (drop-frame) or 30, got {}", sim_fps));
   t.sim.sample_rate = timecode.integer("sample_rate", t.sim.sample_rate, 8000, 192'000);
+  read_alsa_input(timecode, t.sim.sample_rate, t.alsa);
   timecode.reject_unknown_keys();
 }
 

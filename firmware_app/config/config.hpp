@@ -11,6 +11,7 @@
 #include "core/landmarks.hpp"
 #include "core/side_profile.hpp"
 #include "core/timecode.hpp"
+#include "drivers/alsa_capture.hpp"
 #include "drivers/modbus_link.hpp"
 #include "drivers/ola_client.hpp"
 #include "drivers/serial_port.hpp"
@@ -150,8 +151,10 @@ struct Config {
     enum class Source { kNone, kClock, kLtc };
     Source source = Source::kNone;
     TimecodeRate rate = TimecodeRate::k25;
-    /// LTC: the generated signal of sim/ltc_generator.hpp (the only LTC input of this build:
-    /// the ALSA capture driver is not part of it yet).
+    /// LTC: from a sound card input, or the generated signal of sim/ltc_generator.hpp.
+    enum class Input { kSim, kAlsa };
+    Input input = Input::kSim;
+    AlsaCaptureOptions alsa{.sample_rate = 48000, .period_frames = 480, .must_open = false};
     SimulatedLtcOptions sim{.sample_rate = 48000, .start = {10, 0, 0, 0}};
   } timecode;
 

@@ -1,5 +1,6 @@
 #include "firmware_app/config/factories.hpp"
 
+#include "drivers/alsa_capture.hpp"
 #include "drivers/v4l2_camera.hpp"
 #ifdef LIPDRIVE_HAVE_LIBCAMERA
 #include "drivers/libcamera_camera.hpp"
@@ -9,6 +10,7 @@
 #include "sim/simulated_camera.hpp"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 namespace lipdrive {
 
@@ -35,6 +37,16 @@ std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Con
   }
 }
 
+/// [timecode]'s LTC input. A sound card input that cannot be opened yet is retried in the
+/// background: the daemon runs without timecode meanwhile.
+std::unique_ptr<AudioSource> make_ltc_input(const Config::Timecode& timecode) {
+  if (timecode.input == Config::Timecode::Input::kSim) return std::make_unique<SimulatedLtcAudio>(timecode.sim);
+  auto capture = std::make_unique<AlsaCapture>(timecode.alsa);
+  if (!capture->is_open())
+    spdlog::error("LTC input {}: {}; frames go unstamped until it opens", capture->describe(), capture->reopen_error());
+  return capture;
+}
+
 }  // namespace
 
 std::unique_ptr<FrameSource> make_source(const Config& config) { return make_camera(config.camera, config, "camera"); }
@@ -51,8 +63,7 @@ std::unique_ptr<TimecodeSource> make_timecode(const Config& config) {
   switch (timecode.source) {
     case Config::Timecode::Source::kNone: return nullptr;
     case Config::Timecode::Source::kClock: return std::make_unique<ClockTimecode>(timecode.rate);
-    case Config::Timecode::Source::kLtc:
-      return std::make_unique<LtcTimecode>(std::make_unique<SimulatedLtcAudio>(timecode.sim), timecode.rate);
+    case Config::Timecode::Source::kLtc: return std::make_unique<LtcTimecode>(make_ltc_input(timecode), timecode.rate);
   }
   return nullptr;
 }
@@ -67,6 +78,19 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
                                             files.predictor(config.tracker.predictor));
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
+  }
+}
+
+void check_audio_inputs(const Config& config) {
+  const Config::Timecode& timecode = config.timecode;
+  if (timecode.source == Config::Timecode::Source::kLtc && timecode.input == Config::Timecode::Input::kAlsa) {
+    AlsaCaptureOptions probe = timecode.alsa;
+    probe.must_open = true;
+    try {
+      AlsaCapture capture(probe);
+    } catch (const AudioSourceError& e) {
+      throw ConfigError(fmt::format("{}: key timecode.device: {}", config.file.string(), e.what()));
+    }
   }
 }
 

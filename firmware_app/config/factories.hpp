@@ -23,6 +23,11 @@ std::unique_ptr<SideCamera> make_side_camera(const Config& config);
 /// The [timecode] source, or nullptr when frames are not stamped.
 std::unique_ptr<TimecodeSource> make_timecode(const Config& config);
 
+/// Opens, once, the audio inputs the configuration names (an ALSA device for LTC), which the
+/// daemon itself does not insist on at start (a device may appear later): for
+/// `lipdrive check-config`. Throws ConfigError naming the file, the key and the device.
+void check_audio_inputs(const Config& config);
+
 /// Model + predictor + tracker + fitter from [model] and [tracker], the files from `files`
 /// (shared with earlier processors when unchanged). Throws CommandError: a missing model or
 /// predictor (exit 66), one that is invalid or cannot be fitted (exit 65).

@@ -1,0 +1,157 @@
+#include "drivers/audio_file.hpp"
+
+#include <fmt/format.h>
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libavutil/opt.h>
+#include <libswresample/swresample.h>
+}
+
+#include <array>
+#include <memory>
+
+namespace lipdrive {
+namespace {
+
+std::string av_error(int error) {
+  std::array<char, AV_ERROR_MAX_STRING_SIZE> text{};
+  av_strerror(error, text.data(), text.size());
+  return text.data();
+}
+
+struct FormatCloser {
+  void operator()(AVFormatContext* c) const { avformat_close_input(&c); }
+};
+struct CodecFreer {
+  void operator()(AVCodecContext* c) const { avcodec_free_context(&c); }
+};
+struct PacketFreer {
+  void operator()(AVPacket* p) const { av_packet_free(&p); }
+};
+struct FrameFreer {
+  void operator()(AVFrame* f) const { av_frame_free(&f); }
+};
+struct ResamplerFreer {
+  void operator()(SwrContext* s) const { swr_free(&s); }
+};
+
+double stream_start_s(const AVStream* stream) {
+  if (stream->start_time == AV_NOPTS_VALUE) return 0;
+  return static_cast<double>(stream->start_time) * av_q2d(stream->time_base);
+}
+
+/// One file's decoder and resampler; decode() appends the mono samples.
+class TrackDecoder {
+ public:
+  TrackDecoder(const std::filesystem::path& file, int sample_rate) : name_(file.string()), rate_(sample_rate) {
+    AVFormatContext* format = nullptr;
+    if (const int e = avformat_open_input(&format, name_.c_str(), nullptr, nullptr); e < 0)
+      fail(fmt::format("cannot open: {}", av_error(e)));
+    format_.reset(format);
+    if (const int e = avformat_find_stream_info(format, nullptr); e < 0)
+      fail(fmt::format("cannot read the streams: {}", av_error(e)));
+    const AVCodec* codec = nullptr;
+    stream_ = av_find_best_stream(format, AVMEDIA_TYPE_AUDIO, -1, -1, &codec, 0);
+    if (stream_ < 0) fail("no audio track (the clip is video-only)");
+    if (!codec) fail("no decoder for the audio track");
+    const AVStream* audio = format->streams[stream_];
+    const int video = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, nullptr, 0);
+    start_s_ = stream_start_s(audio) - (video >= 0 ? stream_start_s(format->streams[video]) : 0.0);
+
+    codec_.reset(avcodec_alloc_context3(codec));
+    if (!codec_) fail("out of memory");
+    if (const int e = avcodec_parameters_to_context(codec_.get(), audio->codecpar); e < 0)
+      fail(fmt::format("bad audio parameters: {}", av_error(e)));
+    if (const int e = avcodec_open2(codec_.get(), codec, nullptr); e < 0)
+      fail(fmt::format("cannot open the audio decoder: {}", av_error(e)));
+
+    // Resampled in the track's own channel layout, planar float; the channels are averaged here.
+    SwrContext* resampler = nullptr;
+    if (const int e = swr_alloc_set_opts2(&resampler, &codec_->ch_layout, AV_SAMPLE_FMT_FLTP, rate_, &codec_->ch_layout,
+                                          codec_->sample_fmt, codec_->sample_rate, 0, nullptr);
+        e < 0)
+      fail(fmt::format("cannot resample: {}", av_error(e)));
+    resampler_.reset(resampler);
+    if (const int e = swr_init(resampler); e < 0) fail(fmt::format("cannot resample: {}", av_error(e)));
+    channels_ = codec_->ch_layout.nb_channels;
+    if (channels_ < 1) fail("the audio track has no channels");
+  }
+
+  DecodedAudio decode() {
+    DecodedAudio out;
+    out.sample_rate = rate_;
+    out.source_rate = codec_->sample_rate;
+    out.start_s = start_s_;
+    const std::unique_ptr<AVPacket, PacketFreer> packet(av_packet_alloc());
+    const std::unique_ptr<AVFrame, FrameFreer> frame(av_frame_alloc());
+    if (!packet || !frame) fail("out of memory");
+    for (;;) {
+      const int e = av_read_frame(format_.get(), packet.get());
+      if (e == AVERROR_EOF) break;
+      if (e < 0) fail(fmt::format("cannot read: {}", av_error(e)));
+      if (packet->stream_index == stream_) send(packet.get(), frame.get(), out);
+      av_packet_unref(packet.get());
+    }
+    send(nullptr, frame.get(), out);  // drain the decoder
+    convert(nullptr, 0, out);         // and the resampler
+    return out;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& reason) const {
+    throw AudioSourceError(fmt::format("{}: {}", name_, reason));
+  }
+
+  void send(const AVPacket* packet, AVFrame* frame, DecodedAudio& out) {
+    if (const int e = avcodec_send_packet(codec_.get(), packet); e < 0 && e != AVERROR_EOF)
+      fail(fmt::format("cannot decode the audio: {}", av_error(e)));
+    for (;;) {
+      const int e = avcodec_receive_frame(codec_.get(), frame);
+      if (e == AVERROR(EAGAIN) || e == AVERROR_EOF) return;
+      if (e < 0) fail(fmt::format("cannot decode the audio: {}", av_error(e)));
+      convert(const_cast<const std::uint8_t**>(frame->extended_data), frame->nb_samples, out);
+      av_frame_unref(frame);
+    }
+  }
+
+  void convert(const std::uint8_t** in, int count, DecodedAudio& out) {
+    const int room = swr_get_out_samples(resampler_.get(), count);
+    if (room <= 0) return;
+    planes_.resize(static_cast<std::size_t>(channels_));
+    std::vector<std::uint8_t*> pointers;
+    for (auto& plane : planes_) {
+      plane.resize(static_cast<std::size_t>(room));
+      pointers.push_back(reinterpret_cast<std::uint8_t*>(plane.data()));
+    }
+    const int made = swr_convert(resampler_.get(), pointers.data(), room, in, count);
+    if (made < 0) fail(fmt::format("cannot resample: {}", av_error(made)));
+    const float scale = 1.0f / static_cast<float>(channels_);
+    for (int i = 0; i < made; ++i) {
+      float sum = 0;
+      for (const auto& plane : planes_) sum += plane[static_cast<std::size_t>(i)];
+      out.samples.push_back(sum * scale);
+    }
+  }
+
+  std::string name_;
+  int rate_;
+  std::unique_ptr<AVFormatContext, FormatCloser> format_;
+  std::unique_ptr<AVCodecContext, CodecFreer> codec_;
+  std::unique_ptr<SwrContext, ResamplerFreer> resampler_;
+  int stream_ = -1;
+  int channels_ = 0;
+  double start_s_ = 0;
+  std::vector<std::vector<float>> planes_;
+};
+
+}  // namespace
+
+DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate) {
+  if (sample_rate < 8000 || sample_rate > 192'000)
+    throw AudioSourceError(fmt::format("{}: sample rate {} Hz out of range", file.string(), sample_rate));
+  return TrackDecoder(file, sample_rate).decode();
+}
+
+}  // namespace lipdrive
