@@ -1,5 +1,7 @@
 #include "core/fitting.hpp"
 
+#include "core/fit_moments.hpp"
+
 #include <Eigen/Cholesky>
 
 #include <algorithm>
@@ -10,186 +12,10 @@
 #include <stdexcept>
 #include <string>
 
-// Both least-squares problems of docs/method.md 3 are solved through their normal equations,
-// and those only need sums over the landmarks (moments). The sums that involve the model
-// are quadratic in alpha with coefficients that do not change per frame, so they are
-// precomputed; the sums that involve the detected landmarks are formed once per frame.
-// An iteration then costs O(K^2) whatever the landmark count.
-//
-// Notation: set landmark i has mean position m_i, centred m'_i = m_i - m̄, basis rows V̂_i
-// (3 x K, scaled by stddev), detected position y_i, centred y'_i = y_i - c2. B_a is the
-// L x K matrix of the a-th rows (a = x, y, z) of all V̂_i.
-
 namespace lipdrive {
 namespace {
 
-template <int Rows, int Cols>
-using Mat = Eigen::Matrix<double, Rows, Cols>;
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-/// The frame-independent moments of the set's landmarks of the model.
-template <int K>
-struct ModelMoments {
-  Mat<3, 1> centroid;             // m̄
-  Mat<3, 3> scatter;              // sum_i m'_i m'_i^T
-  Mat<K, 9> basis_mean;           // column 3a + b: B_a^T m'_(b) = sum_i V̂_i[a,:]^T m'_i[b]
-  Mat<K, 3> basis_sum;            // column a: B_a^T 1
-  std::array<Mat<K, K>, 6> gram;  // G_xx, G_yy, G_zz, G_xy + G_yx, G_xz + G_zx, G_yz + G_zy
-};
-
-/// The moments of one frame's detected landmarks of the set.
-template <int K>
-struct ImageMoments {
-  Mat<2, 1> centroid;          // c2
-  double mean_squared_radius;  // (1/L) sum_i |y'_i|^2
-  Mat<3, 2> mean_cross;        // sum_i m'_i y'_i^T
-  Mat<K, 6> basis_cross;       // column 2a + c: B_a^T y'_(c)
-};
-
-/// The moments of the model's landmarks X_i = m_i + V̂_i alpha, against the frame's.
-struct ShapeMoments {
-  Mat<3, 1> centroid;  // c3
-  Mat<3, 3> scatter;   // sum_i (X_i - c3)(X_i - c3)^T
-  Mat<3, 2> cross;     // sum_i (X_i - c3) y'_i^T
-};
-
-/// G_ab = B_a^T B_b, the blocks of A^T A and of the landmarks' scatter (see shape_normal_matrix).
-/// G_ba = G_ab^T, and both uses weigh G_ab and G_ba equally, so each off-diagonal pair is stored summed.
-template <int L, int K>
-std::array<Mat<K, K>, 6> landmark_gram(const Mat<3 * L, K>& basis) {
-  const auto rows = [&](int axis) { return basis.template middleRows<L>(axis * L); };
-  const auto gram = [&](int a, int b) -> Mat<K, K> { return rows(a).transpose() * rows(b); };
-  const Mat<K, K> xy = gram(0, 1), xz = gram(0, 2), yz = gram(1, 2);
-  return {gram(0, 0), gram(1, 1), gram(2, 2), xy + xy.transpose(), xz + xz.transpose(), yz + yz.transpose()};
-}
-
-/// `basis` holds the V̂_i as [B_x; B_y; B_z], `mean` the m_i as rows.
-template <int L, int K>
-ModelMoments<K> model_moments(const Mat<3 * L, K>& basis, const Mat<L, 3>& mean) {
-  ModelMoments<K> moments;
-  moments.centroid = mean.colwise().mean().transpose();
-  const Mat<L, 3> centred = mean.rowwise() - moments.centroid.transpose();
-  moments.scatter = centred.transpose() * centred;
-  for (int a = 0; a < 3; ++a) {
-    const auto rows = basis.template middleRows<L>(a * L);
-    moments.basis_mean.template middleCols<3>(3 * a) = rows.transpose() * centred;
-    moments.basis_sum.col(a) = rows.transpose() * Mat<L, 1>::Ones();
-  }
-  moments.gram = landmark_gram<L, K>(basis);
-  return moments;
-}
-
-template <int L, int K>
-ImageMoments<K> image_moments(const Mat<3 * L, K>& basis, const Mat<L, 3>& centred_mean,
-                              const Mat<L, 2>& image_points) {
-  ImageMoments<K> moments;
-  moments.centroid = image_points.colwise().mean().transpose();
-  const Mat<L, 2> centred = image_points.rowwise() - moments.centroid.transpose();
-  moments.mean_squared_radius = centred.squaredNorm() / L;
-  moments.mean_cross.noalias() = centred_mean.transpose().lazyProduct(centred);
-  // As (y'^T B_a)^T: every coefficient is then a dot product of two contiguous columns.
-  for (int a = 0; a < 3; ++a)
-    moments.basis_cross.template middleCols<2>(2 * a).transpose().noalias() =
-        centred.transpose().lazyProduct(basis.template middleRows<L>(a * L));
-  return moments;
-}
-
-/// Expands sum_i X_i X_i^T and sum_i X_i y'_i^T for X_i = m_i + V̂_i alpha (docs/method.md 2):
-/// constant, linear and quadratic terms in alpha, all from precomputed moments.
-template <int L, int K>
-ShapeMoments shape_moments(const ModelMoments<K>& model, const ImageMoments<K>& image, const Mat<K, 1>& alpha) {
-  // lazyProduct: at these sizes Eigen's general matrix-vector kernel costs more than the arithmetic.
-  const Mat<3, 1> offset = model.basis_sum.transpose().lazyProduct(alpha) / L;  // mean of V̂_i alpha
-  const Mat<9, 1> linear = model.basis_mean.transpose().lazyProduct(alpha);     // sum_i m'_i (V̂_i alpha)^T
-  const Mat<6, 1> cross = image.basis_cross.transpose().lazyProduct(alpha);     // sum_i (V̂_i alpha) y'_i^T
-  // sum_i (V̂_i alpha)_a (V̂_i alpha)_b = alpha^T G_ab alpha, each as one pass over G_ab.
-  const Mat<K, K> outer = alpha.lazyProduct(alpha.transpose());
-  const auto form = [&](int block) { return model.gram[block].cwiseProduct(outer).sum(); };
-  Mat<3, 3> quadratic;
-  for (int a = 0; a < 3; ++a) quadratic(a, a) = form(a);
-  quadratic(0, 1) = quadratic(1, 0) = 0.5 * form(3);
-  quadratic(0, 2) = quadratic(2, 0) = 0.5 * form(4);
-  quadratic(1, 2) = quadratic(2, 1) = 0.5 * form(5);
-
-  const Eigen::Map<const Mat<3, 3>> linear_matrix(linear.data());
-  ShapeMoments moments;
-  moments.centroid = model.centroid + offset;
-  moments.scatter = model.scatter + linear_matrix + linear_matrix.transpose() + quadratic -
-                    static_cast<double>(L) * offset * offset.transpose();
-  moments.cross = image.mean_cross + Eigen::Map<const Mat<2, 3>>(cross.data()).transpose();
-  return moments;
-}
-
-/// A similarity x -> scale * (x - centroid) as a homogeneous (D+1)x(D+1) matrix [sI, -s c; 0 1].
-template <int D>
-Mat<D + 1, D + 1> similarity(const Mat<D, 1>& centroid, double scale) {
-  Mat<D + 1, D + 1> matrix = Mat<D + 1, D + 1>::Identity();
-  matrix.template topLeftCorner<D, D>() *= scale;
-  matrix.template topRightCorner<D, 1>() = -scale * centroid;
-  return matrix;
-}
-
-/// Its inverse, [I/s, c; 0 1].
-template <int D>
-Mat<D + 1, D + 1> similarity_inverse(const Mat<D, 1>& centroid, double scale) {
-  Mat<D + 1, D + 1> matrix = Mat<D + 1, D + 1>::Identity();
-  matrix.template topLeftCorner<D, D>() /= scale;
-  matrix.template topRightCorner<D, 1>() = centroid;
-  return matrix;
-}
-
-/// Affine camera by the Gold Standard algorithm (Hartley & Zisserman, Multiple View Geometry,
-/// 2nd ed., Alg. 7.2): normalise x~ = T x (centroid to origin, RMS distance sqrt 2) and X~ = U X
-/// (RMS distance sqrt 3); solve the 2L x 8 least-squares system [X~^T 0; 0 X~^T][c~1; c~2] = [x~; y~],
-/// which decouples into two L x 4 problems with the normal matrix X~^T X~; third row of C~ is
-/// [0 0 0 1]; C = T^-1 C~ U. With X~_i = [s3 (X_i - c3); 1] and x~_i = s2 y'_i, the normal
-/// equations are X~^T X~ = [s3^2 scatter, 0; 0, L] and X~^T [x~ y~] = [s3 s2 cross; 0 0].
-template <int L>
-Mat<3, 4> estimate_affine_camera(const ShapeMoments& shape, const Mat<2, 1>& image_centroid,
-                                 double image_mean_squared_radius) {
-  const double image_scale = std::sqrt(2.0 / image_mean_squared_radius);
-  const double model_scale = std::sqrt(3.0 * L / shape.scatter.trace());
-  Mat<4, 4> normal_matrix = Mat<4, 4>::Zero();
-  normal_matrix.topLeftCorner<3, 3>() = model_scale * model_scale * shape.scatter;
-  normal_matrix(3, 3) = L;
-  Mat<4, 2> normal_rhs = Mat<4, 2>::Zero();
-  normal_rhs.topRows<3>() = model_scale * image_scale * shape.cross;
-  const Mat<4, 2> rows = Eigen::LLT<Mat<4, 4>>(normal_matrix).solve(normal_rhs);  // columns c~1, c~2
-
-  Mat<3, 4> normalised_camera = Mat<3, 4>::Zero();
-  normalised_camera.topRows<2>() = rows.transpose();
-  normalised_camera(2, 3) = 1.0;
-  return similarity_inverse<2>(image_centroid, image_scale) * normalised_camera *
-         similarity<3>(shape.centroid, model_scale);
-}
-
-/// A^T A of the shape fit, A stacking A_i = R V̂_i (R the 2x3 part of the camera): with
-/// M = R^T R, A^T A = sum_i V̂_i^T M V̂_i = sum_ab M_ab G_ab.
-template <int K>
-Mat<K, K> shape_normal_matrix(const ModelMoments<K>& model, const Mat<3, 4>& camera) {
-  const Mat<2, 3> R = camera.template topLeftCorner<2, 3>();
-  Mat<3, 3> M;
-  M.noalias() = R.transpose() * R;
-  const auto& G = model.gram;
-  return M(0, 0) * G[0] + M(1, 1) * G[1] + M(2, 2) * G[2] + M(0, 1) * G[3] + M(0, 2) * G[4] + M(1, 2) * G[5];
-}
-
-/// A^T b of the shape fit, b_i = R m_i + t - y_i the mean shape's reprojection residual (eos,
-/// fit_shape_to_landmarks_linear). With b_i = R m'_i - y'_i + e, e = R m̄ + t - c2:
-/// A^T b = sum_i V̂_i^T R^T b_i = sum_ab M_ab B_a^T m'_(b) - sum_ac R_ca B_a^T y'_(c) + sum_a (R^T e)_a B_a^T 1.
-template <int K>
-Mat<K, 1> shape_rhs(const ModelMoments<K>& model, const ImageMoments<K>& image, const Mat<3, 4>& camera) {
-  const Mat<2, 3> R = camera.template topLeftCorner<2, 3>();
-  Mat<3, 3> M;
-  M.noalias() = R.transpose() * R;
-  const Mat<2, 1> e = R * model.centroid + camera.template topRightCorner<2, 1>() - image.centroid;
-  Mat<K, 1> rhs;
-  rhs.noalias() = model.basis_mean.lazyProduct(M.reshaped());    // column 3a + b meets M(b, a) = M(a, b)
-  rhs.noalias() -= image.basis_cross.lazyProduct(R.reshaped());  // column 2a + c meets R(c, a)
-  rhs.noalias() += model.basis_sum.lazyProduct(R.transpose() * e);
-  return rhs;
-}
+using namespace fit_detail;
 
 /// Regularised linear shape fit (Huber et al., "A Multiresolution 3D Morphable Face Model and
 /// Fitting Framework", VISAPP 2016; eos fit_shape_to_landmarks_linear): minimises
@@ -203,6 +29,48 @@ Mat<K, 1> solve_shape(const Mat<K, K>& AtA, const Mat<K, 1>& Atb, double sigma_p
   return Eigen::LLT<Mat<K, K>>(lhs).solve(-omega * Atb);
 }
 
+/// The camera's scale s (pixels per mm): the RMS norm of the rows of its 2x3 part.
+double camera_scale_squared(const Mat<3, 4>& camera) {
+  return 0.5 * camera.template topLeftCorner<2, 3>().squaredNorm();
+}
+
+/// Expression weights by box-constrained least squares (docs/method.md 3, expression models):
+/// minimises ||A w + b||^2 / (s^2 sigma^2) + sum_e lambda_e w_e^2 over 0 <= w_e <= 1 (the
+/// residual over the camera scale s, so in mm on the face whatever the image size), i.e.
+/// 1/2 w^T H w - g^T w with H = A^T A / (s^2 sigma^2) + diag(lambda), g = -A^T b / (s^2 sigma^2).
+/// Cyclic coordinate descent with each coordinate clamped to its bounds (Franc, Hlavac & Navara,
+/// "Sequential Coordinate-Wise Algorithm for the Non-negative Least Squares Problem", CAIP 2005,
+/// here with an upper bound too): each step sets w_e to the minimiser along e, so the cost never
+/// rises; a fixed number of sweeps, warm-started from the last frame. A coordinate with a
+/// partner shares the bound w_e + w_partner <= 1 (jawOpen and mouthClose, see ExpressionBasis).
+template <int K>
+void solve_bounded(const Mat<K, K>& H, const Mat<K, 1>& g, const std::array<int, K>& partner, int sweeps,
+                   Mat<K, 1>& w) {
+  Mat<K, 1> gradient = H * w - g;  // of 1/2 w^T H w - g^T w
+  for (int sweep = 0; sweep < sweeps; ++sweep)
+    for (int e = 0; e < K; ++e) {
+      const double upper = partner[e] < 0 ? 1.0 : 1.0 - w[partner[e]];
+      const double next = std::clamp(w[e] - gradient[e] / H(e, e), 0.0, std::max(upper, 0.0));
+      const double step = next - w[e];
+      if (step == 0.0) continue;
+      w[e] = next;
+      gradient.noalias() += step * H.col(e);
+    }
+}
+
+/// The shape the per-frame fit moves, at the 68 landmarks: S = mean + basis c, c the
+/// coefficients (alpha for a pose-PCA model, the expression weights for an expression model).
+template <int K>
+struct LandmarkShape {
+  Mat<3, kNumLandmarks> mean;           // mm, NaN where unmapped
+  Mat<3 * kNumLandmarks, K> basis;      // rows x, y, z per landmark; zero where unmapped or beyond the model
+  Mat<K, 1> ridge = Mat<K, 1>::Zero();  // lambda_e of solve_bounded (expression models)
+  std::array<int, K> partner;           // bound partner of solve_bounded, -1 = none
+  int coefficients = 0;                 // columns in use
+  bool expressions = false;             // bounded expression weights, else ridge-regularised alpha
+  int jaw_open = -1, mouth_close = -1;  // expression models: the pair fitted as (u, v) (ExpressionBasis)
+};
+
 /// V̂ rows of one vertex (3 x K, zero beyond the model's components): basis scaled by stddev.
 template <int K>
 Mat<3, K> scaled_basis_rows(const MorphableModel& model, int vertex, int num_components) {
@@ -213,31 +81,74 @@ Mat<3, K> scaled_basis_rows(const MorphableModel& model, int vertex, int num_com
   return rows;
 }
 
+/// A pose-PCA model (or an expression model's identity): mean + V̂ alpha.
+template <int K>
+LandmarkShape<K> pca_shape(const MorphableModel& model, int num_components) {
+  LandmarkShape<K> shape;
+  shape.mean.setConstant(kNaN);
+  shape.basis.setZero();
+  shape.partner.fill(-1);
+  shape.coefficients = num_components;
+  for (int landmark = 0; landmark < kNumLandmarks; ++landmark) {
+    const int vertex = model.landmark_vertex[landmark];
+    if (vertex < 0) continue;
+    shape.mean.col(landmark) = model.mean.segment<3>(3 * vertex).template cast<double>();
+    shape.basis.template middleRows<3>(3 * landmark) = scaled_basis_rows<K>(model, vertex, num_components);
+  }
+  return shape;
+}
+
+/// An expression model with a frozen identity: mean + V̂ alpha + E w, w in [0, 1]. Shapes the
+/// landmarks cannot show (is_unobservable_expression) keep a zero column, so they stay at 0.
+/// jawOpen j and mouthClose c are fitted as u = j - c and v = c, the columns E_jaw and
+/// E_jaw + E_close, both >= 0 with u + v <= 1: ARKit's mouthClose closes the lips against an
+/// open jaw, so c <= j.
+template <int K>
+LandmarkShape<K> expression_shape(const MorphableModel& model, const Eigen::VectorXf& identity,
+                                  const FitSettings& settings) {
+  LandmarkShape<K> shape;
+  shape.expressions = true;
+  shape.coefficients = model.num_expressions();
+  shape.partner.fill(-1);
+  const Eigen::VectorXf neutral =
+      model.mean + model.basis * model.stddev.cwiseProduct(
+                                     identity.size() ? identity : Eigen::VectorXf::Zero(model.num_components()));
+  shape.jaw_open = model.expression_index("jawOpen").value_or(-1);
+  shape.mouth_close = model.expression_index("mouthClose").value_or(-1);
+  shape.mean.setConstant(kNaN);
+  shape.basis.setZero();
+  for (int landmark = 0; landmark < kNumLandmarks; ++landmark) {
+    const int vertex = model.landmark_vertex[landmark];
+    if (vertex < 0) continue;
+    shape.mean.col(landmark) = neutral.segment<3>(3 * vertex).cast<double>();
+    for (int e = 0; e < model.num_expressions(); ++e)
+      if (!is_unobservable_expression(model.expression_names[e]))
+        shape.basis.template block<3, 1>(3 * landmark, e) = model.expressions.block<3, 1>(3 * vertex, e).cast<double>();
+  }
+  if (shape.jaw_open >= 0 && shape.mouth_close >= 0) {
+    shape.basis.col(shape.mouth_close) += shape.basis.col(shape.jaw_open);
+    shape.partner[shape.jaw_open] = shape.mouth_close;
+    shape.partner[shape.mouth_close] = shape.jaw_open;
+  }
+  for (int e = 0; e < model.num_expressions(); ++e)
+    shape.ridge[e] =
+        settings.expression_prior * (e == shape.jaw_open || e == shape.mouth_close ? settings.jaw_prior_ratio : 1.0);
+  return shape;
+}
+
 template <int L, int K>
 class FixedSizeFitter final : public FitterBase {
  public:
-  FixedSizeFitter(const MorphableModel& model, std::span<const int> set_indices, int num_components,
-                  FitSettings settings)
-      : settings_(settings) {
+  FixedSizeFitter(const LandmarkShape<K>& shape, std::span<const int> set_indices, FitSettings settings)
+      : settings_(settings), shape_(shape) {
     std::copy(set_indices.begin(), set_indices.end(), indices_.begin());
     Mat<L, 3> mean;
     for (int i = 0; i < L; ++i) {
-      const int vertex = model.landmark_vertex[indices_[i]];
-      mean.row(i) = model.mean.segment<3>(3 * vertex).template cast<double>().transpose();
-      const Mat<3, K> rows = scaled_basis_rows<K>(model, vertex, num_components);
-      for (int axis = 0; axis < 3; ++axis) basis_.row(axis * L + i) = rows.row(axis);
+      mean.row(i) = shape.mean.col(indices_[i]).transpose();
+      for (int axis = 0; axis < 3; ++axis) basis_.row(axis * L + i) = shape.basis.row(3 * indices_[i] + axis);
     }
     moments_ = model_moments<L, K>(basis_, mean);
     centred_mean_ = mean.rowwise() - moments_.centroid.transpose();
-
-    all_mean_.setConstant(kNaN);
-    all_basis_.setZero();
-    for (int landmark = 0; landmark < kNumLandmarks; ++landmark) {
-      const int vertex = model.landmark_vertex[landmark];
-      if (vertex < 0) continue;
-      all_mean_.col(landmark) = model.mean.segment<3>(3 * vertex).template cast<double>();
-      all_basis_.template middleRows<3>(3 * landmark) = scaled_basis_rows<K>(model, vertex, num_components);
-    }
   }
 
   void fit(const Landmarks2D& detected, FitOutput& inout) const override {
@@ -245,25 +156,63 @@ class FixedSizeFitter final : public FitterBase {
     for (int i = 0; i < L; ++i) image_points.row(i) = detected.col(indices_[i]).transpose();
     const ImageMoments<K> image = image_moments<L, K>(basis_, centred_mean_, image_points);
 
-    Mat<K, 1> alpha = inout.coefficients.template head<K>();
+    Mat<K, 1> c =
+        shape_.expressions ? to_fit_weights(inout.expressions) : Mat<K, 1>(inout.coefficients.template head<K>());
     Mat<3, 4> camera = Mat<3, 4>::Zero();  // set by the first iteration (iterations >= 1)
     for (int iteration = 0; iteration < settings_.iterations; ++iteration) {
-      camera = estimate_affine_camera<L>(shape_moments<L, K>(moments_, image, alpha), image.centroid,
-                                         image.mean_squared_radius);
-      alpha = solve_shape<K>(shape_normal_matrix<K>(moments_, camera), shape_rhs<K>(moments_, image, camera),
-                             settings_.sigma_px, settings_.lambda);
+      camera =
+          estimate_affine_camera<L>(shape_moments<L, K>(moments_, image, c), image.centroid, image.mean_squared_radius);
+      const Mat<K, K> AtA = shape_normal_matrix<K>(moments_, camera);
+      const Mat<K, 1> Atb = shape_rhs<K>(moments_, image, camera);
+      if (shape_.expressions) {
+        const double omega =
+            1.0 / (camera_scale_squared(camera) * settings_.expression_sigma_mm * settings_.expression_sigma_mm);
+        Mat<K, K> H = omega * AtA;
+        H.diagonal() += shape_.ridge;
+        H.diagonal().array() += 1e-12;  // a shape that moves no landmark keeps a finite step
+        solve_bounded<K>(H, -omega * Atb, shape_.partner, settings_.sweeps, c);
+      } else {
+        c = solve_shape<K>(AtA, Atb, settings_.sigma_px, settings_.lambda);
+      }
     }
-    write_output(camera, alpha, image_points, inout);
+    write_output(camera, c, image_points, inout);
+  }
+
+  void add_normal_equations(const Landmarks2D& detected, const Eigen::VectorXd& alpha, Eigen::MatrixXd& AtA,
+                            Eigen::VectorXd& Atb) const override {
+    Mat<L, 2> image_points;
+    for (int i = 0; i < L; ++i) image_points.row(i) = detected.col(indices_[i]).transpose();
+    const ImageMoments<K> image = image_moments<L, K>(basis_, centred_mean_, image_points);
+    Mat<K, 1> c = Mat<K, 1>::Zero();
+    c.head(alpha.size()) = alpha;
+    const Mat<3, 4> camera =
+        estimate_affine_camera<L>(shape_moments<L, K>(moments_, image, c), image.centroid, image.mean_squared_radius);
+    AtA += shape_normal_matrix<K>(moments_, camera).topLeftCorner(alpha.size(), alpha.size());
+    Atb += shape_rhs<K>(moments_, image, camera).head(alpha.size());
   }
 
  private:
-  void write_output(const Mat<3, 4>& camera, const Mat<K, 1>& alpha, const Mat<L, 2>& image_points,
-                    FitOutput& out) const {
+  /// Expression weights (model order) -> the fitted coordinates: u = jawOpen - mouthClose.
+  Mat<K, 1> to_fit_weights(const FitOutput::Expressions& w) const {
+    Mat<K, 1> c = w.template head<K>();
+    if (shape_.jaw_open >= 0 && shape_.mouth_close >= 0)
+      c[shape_.jaw_open] = std::max(0.0, w[shape_.jaw_open] - w[shape_.mouth_close]);
+    return c;
+  }
+
+  void write_output(const Mat<3, 4>& camera, const Mat<K, 1>& c, const Mat<L, 2>& image_points, FitOutput& out) const {
     out.camera = camera;
-    out.coefficients.setZero();
-    out.coefficients.template head<K>() = alpha;
-    Eigen::Map<Mat<3 * kNumLandmarks, 1>>(out.model_landmarks.data()).noalias() = all_basis_.lazyProduct(alpha);
-    out.model_landmarks += all_mean_;
+    if (shape_.expressions) {
+      out.expressions.setZero();
+      out.expressions.template head<K>() = c;
+      if (shape_.jaw_open >= 0 && shape_.mouth_close >= 0)
+        out.expressions[shape_.jaw_open] = c[shape_.jaw_open] + c[shape_.mouth_close];
+    } else {
+      out.coefficients.setZero();
+      out.coefficients.template head<K>() = c;
+    }
+    Eigen::Map<Mat<3 * kNumLandmarks, 1>>(out.model_landmarks.data()).noalias() = shape_.basis.lazyProduct(c);
+    out.model_landmarks += shape_.mean;
     out.projected.noalias() = camera.template topLeftCorner<2, 3>().lazyProduct(out.model_landmarks);
     out.projected.colwise() += camera.template topRightCorner<2, 1>();
     double squared_error = 0;
@@ -273,39 +222,69 @@ class FixedSizeFitter final : public FitterBase {
   }
 
   FitSettings settings_;
+  LandmarkShape<K> shape_;      // the shape at all 68 landmarks
   std::array<int, L> indices_;  // iBUG index of each set landmark
-  Mat<3 * L, K> basis_;         // V̂ at the set's landmarks: [B_x; B_y; B_z]
+  Mat<3 * L, K> basis_;         // the basis at the set's landmarks: [B_x; B_y; B_z]
   Mat<L, 3> centred_mean_;      // m'_i, one per row (mm)
   ModelMoments<K> moments_;
-  Mat<3, kNumLandmarks> all_mean_;       // m at all 68 landmarks, NaN where unmapped
-  Mat<3 * kNumLandmarks, K> all_basis_;  // V̂ at all 68 landmarks, rows x, y, z per landmark
 };
 
 template <int K, LandmarkSet S>
-std::unique_ptr<FitterBase> fitter_for(const MorphableModel& model, int num_components, FitSettings settings) {
-  return std::make_unique<FixedSizeFitter<landmark_count(S), K>>(model, landmark_indices(S), num_components, settings);
+std::unique_ptr<FitterBase> fitter_for(const LandmarkShape<K>& shape, FitSettings settings) {
+  return std::make_unique<FixedSizeFitter<landmark_count(S), K>>(shape, landmark_indices(S), settings);
 }
 
 template <int K>
-std::unique_ptr<FitterBase> make_fixed_size_fitter(const MorphableModel& model, LandmarkSet set, int num_components,
+std::unique_ptr<FitterBase> make_fixed_size_fitter(const LandmarkShape<K>& shape, LandmarkSet set,
                                                    FitSettings settings) {
   switch (set) {
-    case LandmarkSet::F1: return fitter_for<K, LandmarkSet::F1>(model, num_components, settings);
-    case LandmarkSet::F2: return fitter_for<K, LandmarkSet::F2>(model, num_components, settings);
-    case LandmarkSet::F3: return fitter_for<K, LandmarkSet::F3>(model, num_components, settings);
-    case LandmarkSet::F4: return fitter_for<K, LandmarkSet::F4>(model, num_components, settings);
-    case LandmarkSet::F5: return fitter_for<K, LandmarkSet::F5>(model, num_components, settings);
+    case LandmarkSet::F1: return fitter_for<K, LandmarkSet::F1>(shape, settings);
+    case LandmarkSet::F2: return fitter_for<K, LandmarkSet::F2>(shape, settings);
+    case LandmarkSet::F3: return fitter_for<K, LandmarkSet::F3>(shape, settings);
+    case LandmarkSet::F4: return fitter_for<K, LandmarkSet::F4>(shape, settings);
+    case LandmarkSet::F5: return fitter_for<K, LandmarkSet::F5>(shape, settings);
   }
   throw std::invalid_argument("Fitter: unknown landmark set");
+}
+
+/// The expression fit exists for the sets with eyes and brows (F4, F5): their shapes move them.
+std::unique_ptr<FitterBase> make_expression_fitter(const LandmarkShape<kMaxFitExpressions>& shape, LandmarkSet set,
+                                                   FitSettings settings) {
+  switch (set) {
+    case LandmarkSet::F4: return fitter_for<kMaxFitExpressions, LandmarkSet::F4>(shape, settings);
+    case LandmarkSet::F5: return fitter_for<kMaxFitExpressions, LandmarkSet::F5>(shape, settings);
+    default: break;
+  }
+  throw std::invalid_argument("Fitter: a model with expression shapes is fitted with landmark set F4 or F5, not " +
+                              std::string(landmark_set_name(set)));
+}
+
+/// The pose-PCA fitter of a model's components (an expression model's identity).
+std::unique_ptr<FitterBase> make_pca_fitter(const MorphableModel& model, LandmarkSet set, int num_components,
+                                            FitSettings settings) {
+  // Two compiled sizes keep the code small; unused components of the larger size have zero
+  // basis columns, so lambda holds them at exactly zero.
+  return num_components <= 20 ? make_fixed_size_fitter<20>(pca_shape<20>(model, num_components), set, settings)
+                              : make_fixed_size_fitter<kMaxFitComponents>(
+                                    pca_shape<kMaxFitComponents>(model, num_components), set, settings);
 }
 
 void check_fit_inputs(const MorphableModel& model, LandmarkSet set, const FitSettings& settings) {
   if (settings.iterations < 1) throw std::invalid_argument("Fitter: iterations must be at least 1");
   if (!(settings.lambda > 0)) throw std::invalid_argument("Fitter: lambda must be positive");
   if (!(settings.sigma_px > 0)) throw std::invalid_argument("Fitter: sigma_px must be positive");
+  if (settings.sweeps < 1 || settings.identity_iterations < 1)
+    throw std::invalid_argument("Fitter: sweeps and identity_iterations must be at least 1");
+  if (!(settings.expression_sigma_mm > 0)) throw std::invalid_argument("Fitter: expression_sigma_mm must be positive");
+  if (!(settings.expression_prior >= 0) || !(settings.jaw_prior_ratio >= 0))
+    throw std::invalid_argument("Fitter: the expression priors must not be negative");
   if (model.num_components() < 1) throw std::invalid_argument("Fitter: the model has no shape components");
   if (model.basis.rows() != model.mean.size() || model.basis.cols() != model.num_components())
     throw std::invalid_argument("Fitter: the model's basis does not match its mean and stddev sizes");
+  if (model.num_expressions() > kMaxFitExpressions)
+    throw std::invalid_argument("Fitter: the model has " + std::to_string(model.num_expressions()) +
+                                " expression shapes, more than the " + std::to_string(kMaxFitExpressions) +
+                                " the fitter holds");
   for (int landmark = 0; landmark < kNumLandmarks; ++landmark) {
     const int vertex = model.landmark_vertex[landmark];
     if (vertex >= model.num_vertices())
@@ -321,14 +300,21 @@ void check_fit_inputs(const MorphableModel& model, LandmarkSet set, const FitSet
 
 }  // namespace
 
-Fitter::Fitter(const MorphableModel& model, LandmarkSet set, FitSettings settings)
+bool is_unobservable_expression(std::string_view name) {
+  return name.starts_with("eyeLook") || name.starts_with("cheekPuff") || name.starts_with("tongueOut");
+}
+
+Fitter::Fitter(const MorphableModel& model, LandmarkSet set, FitSettings settings, const Eigen::VectorXf& identity)
     : num_components_(std::min(model.num_components(), kMaxFitComponents)),
-      truncated_(model.num_components() > kMaxFitComponents) {
+      truncated_(model.num_components() > kMaxFitComponents),
+      expressions_(model.has_expressions()) {
   check_fit_inputs(model, set, settings);
-  // Two compiled sizes keep the code small; unused components of the larger size have zero
-  // basis columns, so lambda holds them at exactly zero.
-  impl_ = num_components_ <= 20 ? make_fixed_size_fitter<20>(model, set, num_components_, settings)
-                                : make_fixed_size_fitter<kMaxFitComponents>(model, set, num_components_, settings);
+  if (identity.size() != 0 && identity.size() != model.num_components())
+    throw std::invalid_argument("Fitter: the identity has " + std::to_string(identity.size()) +
+                                " coefficients, the model " + std::to_string(model.num_components()));
+  impl_ = expressions_
+              ? make_expression_fitter(expression_shape<kMaxFitExpressions>(model, identity, settings), set, settings)
+              : make_pca_fitter(model, set, num_components_, settings);
 }
 
 void Fitter::fit(const Landmarks2D& detected, FitOutput& inout) const { impl_->fit(detected, inout); }
@@ -338,10 +324,34 @@ FitOutput Fitter::initial_output() {
   output.camera.setZero();
   output.camera(2, 3) = 1.0;
   output.coefficients.setZero();
+  output.expressions.setZero();
   output.projected.setConstant(kNaN);
   output.model_landmarks.setConstant(kNaN);
   output.reprojection_error_px = kNaN;
   return output;
+}
+
+Eigen::VectorXf fit_identity(const MorphableModel& model, LandmarkSet set, std::span<const Landmarks2D> frames,
+                             FitSettings settings) {
+  check_fit_inputs(model, set, settings);
+  if (frames.empty()) throw std::invalid_argument("fit_identity: no frames");
+  const int k = std::min(model.num_components(), kMaxFitComponents);
+  const std::unique_ptr<FitterBase> fitter = make_pca_fitter(model, set, k, settings);
+  const double omega = 1.0 / (settings.sigma_px * settings.sigma_px);
+  Eigen::VectorXd alpha = Eigen::VectorXd::Zero(k);
+  for (int iteration = 0; iteration < settings.identity_iterations; ++iteration) {
+    Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(k, k);
+    Eigen::VectorXd Atb = Eigen::VectorXd::Zero(k);
+    for (const Landmarks2D& frame : frames) fitter->add_normal_equations(frame, alpha, AtA, Atb);
+    // The MAP estimate of one identity behind every frame (Huber et al. 2016 as above, the
+    // data term summed over the frames): (sum_f A_f^T Omega A_f + lambda I) alpha = -sum_f A_f^T Omega b_f.
+    Eigen::MatrixXd lhs = omega * AtA;
+    lhs.diagonal().array() += settings.lambda;
+    alpha = Eigen::LLT<Eigen::MatrixXd>(lhs).solve(-omega * Atb);
+  }
+  Eigen::VectorXf identity = Eigen::VectorXf::Zero(model.num_components());
+  identity.head(k) = alpha.cast<float>();
+  return identity;
 }
 
 }  // namespace lipdrive

@@ -1,5 +1,8 @@
 // The per-frame fitter (docs/method.md 3): an affine camera by the Gold Standard
-// algorithm and a regularised linear shape fit, alternated a fixed number of times.
+// algorithm and a linear shape fit, alternated a fixed number of times. One interface for
+// both kinds of model: a pose-PCA model fits its components (regularised least squares); a
+// model with expression shapes (the ICT head) fits the expression weights in [0, 1] (bounded
+// least squares) on the performer's identity, which fit_identity() fits once from neutral frames.
 // All per-frame arithmetic runs on compile-time sized Eigen matrices, so a fit
 // allocates nothing and costs the same every frame.
 #pragma once
@@ -10,23 +13,40 @@
 #include <Eigen/Core>
 
 #include <memory>
+#include <span>
+#include <string_view>
 
 namespace lipdrive {
 
 /// Component counts above this are truncated: the fitter's matrices have compile-time sizes.
 inline constexpr int kMaxFitComponents = 40;
+/// The most expression shapes a model may have (the ICT head has 53).
+inline constexpr int kMaxFitExpressions = 56;
 
 struct FitSettings {
   int iterations = 3;     // pose <-> shape alternations per frame (>= 1)
   double lambda = 1.0;    // shape regulariser; 1 = MAP estimate under the prior alpha ~ N(0, I)
   double sigma_px = 1.0;  // landmark noise standard deviation in pixels
+  // Expression models (docs/method.md 3):
+  int sweeps = 20;                   // coordinate-descent sweeps per pose <-> shape iteration (>= 1)
+  int identity_iterations = 10;      // fit_identity: camera <-> identity alternations (>= 1)
+  double expression_sigma_mm = 1.0;  // landmark noise on the face, in mm (the residual over the camera scale)
+  double expression_prior = 1.0;     // lambda_e: the cost of a shape at full weight, in units of sigma^2
+  double jaw_prior_ratio = 1.0;      // lambda of jawOpen and mouthClose relative to expression_prior
 };
+
+/// Expression shapes a 68-point landmark fit cannot observe (eye gaze, a puffed cheek, the
+/// tongue): the fit holds them at 0.
+bool is_unobservable_expression(std::string_view name);
 
 /// Fixed size: no allocation when reused frame to frame.
 struct FitOutput {
   Eigen::Matrix<double, 3, 4> camera;                        // affine camera, last row 0 0 0 1: image = camera * [X;1]
   Eigen::Matrix<double, kMaxFitComponents, 1> coefficients;  // alpha (first num_components used); also the warm start
-  Landmarks2D projected;                                     // all 68 model landmarks projected (NaN if unmapped)
+  using Expressions = Eigen::Matrix<double, kMaxFitExpressions, 1>;
+  Expressions
+      expressions;        // expression weights in [0, 1] in the model's order (0 for a pose-PCA model); the warm start
+  Landmarks2D projected;  // all 68 model landmarks projected (NaN if unmapped)
   Eigen::Matrix<double, 3, kNumLandmarks>
       model_landmarks;           // fitted shape at the 68 landmark vertices (mm, NaN if unmapped)
   double reprojection_error_px;  // RMS over the landmarks of the set
@@ -37,17 +57,25 @@ class FitterBase {
  public:
   virtual ~FitterBase() = default;
   virtual void fit(const Landmarks2D& detected, FitOutput& inout) const = 0;
+  /// Adds one frame's A^T A and A^T b of the shape fit at coefficients `alpha`, under the
+  /// frame's camera for that shape (fit_identity).
+  virtual void add_normal_equations(const Landmarks2D& detected, const Eigen::VectorXd& alpha, Eigen::MatrixXd& AtA,
+                                    Eigen::VectorXd& Atb) const = 0;
 };
 
 class Fitter {
  public:
   /// Precomputes everything that does not change per frame. Throws std::invalid_argument
   /// when a landmark of `set` is unmapped in the model, the model has no components,
-  /// or the settings are out of range (iterations < 1, lambda <= 0, sigma_px <= 0).
-  Fitter(const MorphableModel& model, LandmarkSet set, FitSettings settings = {});
+  /// or the settings are out of range (iterations < 1, lambda <= 0, sigma_px <= 0). For a
+  /// model with expression shapes, `identity` is the performer's (fit_identity; empty = the
+  /// mean face) and `set` must be F4 or F5.
+  Fitter(const MorphableModel& model, LandmarkSet set, FitSettings settings = {},
+         const Eigen::VectorXf& identity = Eigen::VectorXf());
 
   /// Fits the model to the detected landmarks of the set (the others are ignored),
-  /// warm-started from inout.coefficients. Allocates nothing.
+  /// warm-started from inout.coefficients (inout.expressions for an expression model).
+  /// Allocates nothing.
   void fit(const Landmarks2D& detected, FitOutput& inout) const;
 
   /// Zero coefficients (the mean shape); everything else NaN until the first fit.
@@ -56,11 +84,22 @@ class Fitter {
   int num_components() const { return num_components_; }
   /// True when the model has more than kMaxFitComponents components and the rest are ignored.
   bool truncated_components() const { return truncated_; }
+  /// True for a model with expression shapes: the fit sets FitOutput::expressions.
+  bool fits_expressions() const { return expressions_; }
 
  private:
   std::unique_ptr<FitterBase> impl_;  // virtual dispatch to FixedSizeFitter<L, K>
   int num_components_;
   bool truncated_;
+  bool expressions_;
 };
+
+/// The identity of a performer from neutral frames (docs/method.md 3): the components alpha of
+/// one shape behind all frames, each frame under its own affine camera, alternated `iterations`
+/// times (MAP estimate, the data term summed over the frames). For a model with expression
+/// shapes, these are its identity components, fitted with the expressions at 0. Throws
+/// std::invalid_argument as Fitter does, or when `frames` is empty. Allocates: calibration only.
+Eigen::VectorXf fit_identity(const MorphableModel& model, LandmarkSet set, std::span<const Landmarks2D> frames,
+                             FitSettings settings = {});
 
 }  // namespace lipdrive
