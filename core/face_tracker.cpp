@@ -1,16 +1,8 @@
 #include "core/face_tracker.hpp"
 
-#include <dlib/image_processing/frontal_face_detector.h>
-#include <dlib/opencv/cv_image.h>
-
-#include <algorithm>
 #include <vector>
 
 namespace lipdrive {
-
-struct FaceTracker::Detector {
-  dlib::frontal_face_detector hog = dlib::get_frontal_face_detector();
-};
 
 double interocular_distance(const Landmarks2D& landmarks) {
   return (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)).norm();
@@ -41,19 +33,13 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
 }
 
 FaceTracker::FaceTracker(std::shared_ptr<const ShapePredictorData> predictor, TrackerSettings settings)
-    : settings_(settings), predictor_(std::move(predictor)), detector_(std::make_unique<Detector>()) {}
-
-FaceTracker::~FaceTracker() = default;
-FaceTracker::FaceTracker(FaceTracker&&) noexcept = default;
-FaceTracker& FaceTracker::operator=(FaceTracker&&) noexcept = default;
+    : settings_(settings), predictor_(predictor), detector_(predictor->detector()) {}
 
 bool FaceTracker::acquire(const cv::Mat& gray, Landmarks2D& landmarks) {
-  std::vector<dlib::rectangle> faces = detector_->hog(dlib::cv_image<unsigned char>(gray));
   // One performer per camera: the largest face is theirs, unless its landmarks fail the
   // checks (a face cut by the image border); then the next largest.
-  std::sort(faces.begin(), faces.end(), [](const auto& a, const auto& b) { return a.area() > b.area(); });
-  for (const dlib::rectangle& face : faces) {
-    box_ = FaceBox{face.left(), face.top(), face.right(), face.bottom()};
+  for (const FaceBox& face : detector_.detect(gray)) {
+    box_ = face;
     predictor_.predict(gray, box_, landmarks);
     if (accept(gray, landmarks, true)) return true;
   }

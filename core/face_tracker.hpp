@@ -66,9 +66,6 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
 class FaceTracker {
  public:
   explicit FaceTracker(std::shared_ptr<const ShapePredictorData> predictor, TrackerSettings settings = {});
-  ~FaceTracker();
-  FaceTracker(FaceTracker&&) noexcept;
-  FaceTracker& operator=(FaceTracker&&) noexcept;
 
   /// Landmarks of the face in the luma image `gray` (CV_8UC1). A tracked face whose new
   /// landmarks fail the checks is looked for afresh by the detector in the same frame. When
@@ -91,13 +88,12 @@ class FaceTracker {
   double appearance() const { return appearance_; }
 
  private:
-  struct Detector;  // dlib's frontal_face_detector, kept out of this header
   bool acquire(const cv::Mat& gray, Landmarks2D& landmarks);
   bool accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring);
 
   TrackerSettings settings_;
   ShapePredictor predictor_;
-  std::unique_ptr<Detector> detector_;
+  FaceDetector detector_;  // a copy of the predictor's
   FaceAppearance face_;
   double appearance_ = 0;
   double face_luma_ = 0;    // this frame's upper-face luma

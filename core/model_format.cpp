@@ -1,5 +1,7 @@
 #include "core/model_format.hpp"
 
+#include "core/checksum.hpp"
+
 #include <zlib.h>
 
 #include <algorithm>
@@ -14,12 +16,6 @@ namespace lipdrive {
 namespace {
 
 constexpr std::string_view kMagic = "LPDMODEL";
-
-/// The payload checksum: zlib's CRC-32 (IEEE 802.3 polynomial, reflected 0xEDB88320,
-/// initial and final XOR 0xFFFFFFFF), the checksum of zlib, PNG and Ethernet.
-std::uint32_t payload_crc(std::span<const std::uint8_t> payload) {
-  return static_cast<std::uint32_t>(::crc32_z(::crc32_z(0, nullptr, 0), payload.data(), payload.size()));
-}
 
 // --- writing -------------------------------------------------------------
 
@@ -189,7 +185,7 @@ void check_payload(std::span<const std::uint8_t> bytes, std::size_t header_size,
   if (h.payload_length < available)
     throw ModelFormatError(source + ": " + std::to_string(available - h.payload_length) +
                            " unexpected bytes after the payload");
-  const std::uint32_t actual = payload_crc(bytes.subspan(header_size));
+  const std::uint32_t actual = crc32(bytes.subspan(header_size));
   if (actual != h.checksum)
     throw ModelFormatError(source + ": checksum mismatch (header says " + std::to_string(h.checksum) +
                            ", payload has " + std::to_string(actual) + "): the file is corrupted");
@@ -342,7 +338,7 @@ std::vector<std::uint8_t> serialize_pose_model(const MorphableModel& m) {
   ByteWriter file;
   write_header_start(file, m, kModelFormatVersion);
   file.u64(payload.buffer().size());
-  file.u32(payload_crc(payload.buffer()));
+  file.u32(crc32(payload.buffer()));
   file.bytes(payload.buffer());
   return std::move(file.buffer());
 }
@@ -371,7 +367,7 @@ std::vector<std::uint8_t> serialize_expression_model(const MorphableModel& m) {
   file.u32(static_cast<std::uint32_t>(m.num_expressions()));
   file.u64(stream.size());
   file.u64(inflated.size());
-  file.u32(payload_crc(stream));
+  file.u32(crc32(stream));
   file.u32(0);
   file.bytes(stream);
   return std::move(file.buffer());

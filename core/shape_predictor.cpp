@@ -1,12 +1,18 @@
 #include "core/shape_predictor.hpp"
 
+#include "core/checksum.hpp"
+
 #include <dlib/image_processing/shape_predictor.h>
 
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstring>
 #include <string>
+#include <string_view>
+#include <type_traits>
 
 namespace lipdrive {
 namespace {
@@ -104,33 +110,234 @@ Eigen::Matrix2f similarity_linear_part(const float* from, const float* to) {
   return (m / sigma_from).cast<float>();
 }
 
+/// The arrays read_dlib builds and the spans of ShapePredictorData point into.
+struct OwnedArrays {
+  std::vector<float> initial_shape;
+  std::vector<std::int32_t> cascade_first_tree, cascade_first_feature;
+  std::vector<std::uint16_t> anchor;
+  std::vector<float> delta;
+  std::vector<ShapePredictorData::Split> splits;
+  std::vector<float> leaf_values;
+};
+
+int largest_cascade(std::span<const std::int32_t> first_feature) {
+  int largest = 0;
+  for (std::size_t c = 1; c < first_feature.size(); ++c)
+    largest = std::max(largest, first_feature[c] - first_feature[c - 1]);
+  return largest;
+}
+
+// --- the .lpp file (layout in shape_predictor.hpp) ---------------------------------------
+
+static_assert(std::endian::native == std::endian::little, "the .lpp file is mapped as little-endian arrays");
+static_assert(sizeof(ShapePredictorData::Split) == 8 && std::is_trivially_copyable_v<ShapePredictorData::Split>);
+
+constexpr std::string_view kCompactMagic{"LPDPRED\0", 8};
+constexpr std::uint32_t kCompactVersion = 1;
+constexpr std::size_t kCompactHeaderSize = 64, kCompactAlignment = 64;
+// Bounds on a header's counts (dlib's 68-point model: 15 cascades, 7,500 trees, 7,500 feature
+// pixels), so that a forged header cannot make the sizes below overflow.
+constexpr std::uint32_t kMaxCompactTrees = 1u << 20, kMaxCompactFeatures = 1u << 24;
+
+struct CompactCounts {
+  std::uint32_t depth, cascades, trees, features;
+  std::uint64_t detector_bytes;
+};
+
+/// Where each array of the payload starts, and where the file ends.
+struct CompactLayout {
+  std::size_t initial_shape, cascade_first_tree, cascade_first_feature, anchor, delta, splits, leaf_values, detector,
+      end;
+};
+
+CompactLayout compact_layout(const CompactCounts& n) {
+  const std::size_t splits_per_tree = (std::size_t{1} << n.depth) - 1;
+  std::size_t at = kCompactHeaderSize;
+  const auto next = [&](std::size_t bytes) {
+    const std::size_t start = at;
+    at = (at + bytes + kCompactAlignment - 1) / kCompactAlignment * kCompactAlignment;
+    return start;
+  };
+  CompactLayout l{};
+  l.initial_shape = next(ShapePredictorData::kShapeSize * sizeof(float));
+  l.cascade_first_tree = next((n.cascades + 1) * sizeof(std::int32_t));
+  l.cascade_first_feature = next((n.cascades + 1) * sizeof(std::int32_t));
+  l.anchor = next(n.features * sizeof(std::uint16_t));
+  l.delta = next(2 * std::size_t{n.features} * sizeof(float));
+  l.splits = next(n.trees * splits_per_tree * sizeof(ShapePredictorData::Split));
+  l.leaf_values = next(n.trees * (splits_per_tree + 1) * ShapePredictorData::kShapeSize * sizeof(float));
+  l.detector = at;
+  l.end = at + n.detector_bytes;
+  return l;
+}
+
+void put_u32(std::vector<std::uint8_t>& file, std::size_t offset, std::uint32_t v) {
+  std::memcpy(file.data() + offset, &v, sizeof v);
+}
+void put_u64(std::vector<std::uint8_t>& file, std::size_t offset, std::uint64_t v) {
+  std::memcpy(file.data() + offset, &v, sizeof v);
+}
+std::uint32_t get_u32(std::span<const std::uint8_t> bytes, std::size_t offset) {
+  std::uint32_t v;
+  std::memcpy(&v, bytes.data() + offset, sizeof v);
+  return v;
+}
+std::uint64_t get_u64(std::span<const std::uint8_t> bytes, std::size_t offset) {
+  std::uint64_t v;
+  std::memcpy(&v, bytes.data() + offset, sizeof v);
+  return v;
+}
+
+/// `count` values of type T at `offset` of a mapped file, in place: the layout aligns every
+/// array to 64 bytes and the mapping starts on a page, so they are aligned for T.
+template <typename T>
+std::span<const T> view_of(std::span<const std::uint8_t> bytes, std::size_t offset, std::size_t count) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  return {reinterpret_cast<const T*>(bytes.data() + offset), count};
+}
+
 }  // namespace
 
-ShapePredictorData ShapePredictorData::read_dlib(std::istream& in) {
+ShapePredictorData ShapePredictorData::read_dlib(std::istream& in, FaceDetector (*detector)()) {
   const DlibFields f = read_fields(in);
   check_fields(f);
 
-  ShapePredictorData d;
+  auto a = std::make_shared<OwnedArrays>();
   const std::size_t splits = f.forests.front().front().splits.size();
-  d.tree_depth_ = static_cast<int>(std::log2(static_cast<double>(splits + 1)));
-  d.initial_shape_.assign(f.initial_shape.begin(), f.initial_shape.end());
-  d.cascade_first_tree_.push_back(0);
-  d.cascade_first_feature_.push_back(0);
+  a->initial_shape.assign(f.initial_shape.begin(), f.initial_shape.end());
+  a->cascade_first_tree.push_back(0);
+  a->cascade_first_feature.push_back(0);
   for (std::size_t c = 0; c < f.forests.size(); ++c) {
     for (std::size_t i = 0; i < f.deltas[c].size(); ++i) {
-      d.anchor_.push_back(static_cast<std::uint16_t>(f.anchor_idx[c][i]));
-      d.delta_.push_back(f.deltas[c][i].x());
-      d.delta_.push_back(f.deltas[c][i].y());
+      a->anchor.push_back(static_cast<std::uint16_t>(f.anchor_idx[c][i]));
+      a->delta.push_back(f.deltas[c][i].x());
+      a->delta.push_back(f.deltas[c][i].y());
     }
     for (const auto& tree : f.forests[c]) {
       for (const auto& s : tree.splits)
-        d.splits_.push_back({static_cast<std::uint16_t>(s.idx1), static_cast<std::uint16_t>(s.idx2), s.thresh});
-      for (const auto& leaf : tree.leaf_values) d.leaf_values_.insert(d.leaf_values_.end(), leaf.begin(), leaf.end());
+        a->splits.push_back({static_cast<std::uint16_t>(s.idx1), static_cast<std::uint16_t>(s.idx2), s.thresh});
+      for (const auto& leaf : tree.leaf_values) a->leaf_values.insert(a->leaf_values.end(), leaf.begin(), leaf.end());
     }
-    d.cascade_first_tree_.push_back(d.cascade_first_tree_.back() + static_cast<int>(f.forests[c].size()));
-    d.cascade_first_feature_.push_back(d.cascade_first_feature_.back() + static_cast<int>(f.deltas[c].size()));
-    d.max_features_ = std::max(d.max_features_, static_cast<int>(f.deltas[c].size()));
+    a->cascade_first_tree.push_back(a->cascade_first_tree.back() + static_cast<std::int32_t>(f.forests[c].size()));
+    a->cascade_first_feature.push_back(a->cascade_first_feature.back() + static_cast<std::int32_t>(f.deltas[c].size()));
   }
+
+  ShapePredictorData d(detector());
+  d.tree_depth_ = static_cast<int>(std::log2(static_cast<double>(splits + 1)));
+  d.initial_shape_ = a->initial_shape;
+  d.cascade_first_tree_ = a->cascade_first_tree;
+  d.cascade_first_feature_ = a->cascade_first_feature;
+  d.anchor_ = a->anchor;
+  d.delta_ = a->delta;
+  d.splits_ = a->splits;
+  d.leaf_values_ = a->leaf_values;
+  d.max_features_ = largest_cascade(d.cascade_first_feature_);
+  d.storage_ = std::move(a);
+  return d;
+}
+
+std::vector<std::uint8_t> ShapePredictorData::write_compact() const {
+  const std::vector<std::uint8_t> detector = detector_.serialize();
+  const CompactCounts counts{static_cast<std::uint32_t>(tree_depth_), static_cast<std::uint32_t>(num_cascades()),
+                             static_cast<std::uint32_t>(num_trees()),
+                             static_cast<std::uint32_t>(cascade_first_feature_.back()), detector.size()};
+  const CompactLayout layout = compact_layout(counts);
+  std::vector<std::uint8_t> file(layout.end, 0);
+  const auto put = [&](std::size_t offset, const auto& values) {
+    std::memcpy(file.data() + offset, values.data(), values.size_bytes());
+  };
+  put(layout.initial_shape, initial_shape_);
+  put(layout.cascade_first_tree, cascade_first_tree_);
+  put(layout.cascade_first_feature, cascade_first_feature_);
+  put(layout.anchor, anchor_);
+  put(layout.delta, delta_);
+  put(layout.splits, splits_);
+  put(layout.leaf_values, leaf_values_);
+  put(layout.detector, std::span(detector));
+
+  std::memcpy(file.data(), kCompactMagic.data(), kCompactMagic.size());
+  put_u32(file, 8, kCompactVersion);
+  put_u32(file, 12, kNumLandmarks);
+  put_u32(file, 16, counts.depth);
+  put_u32(file, 20, counts.cascades);
+  put_u32(file, 24, counts.trees);
+  put_u32(file, 28, counts.features);
+  put_u64(file, 32, counts.detector_bytes);
+  put_u64(file, 40, layout.end - kCompactHeaderSize);
+  put_u32(file, 48, crc32(std::span(file).subspan(kCompactHeaderSize)));
+  return file;
+}
+
+bool ShapePredictorData::is_compact(std::span<const std::uint8_t> bytes) {
+  return bytes.size() >= kCompactMagic.size() &&
+         std::memcmp(bytes.data(), kCompactMagic.data(), kCompactMagic.size()) == 0;
+}
+
+ShapePredictorData ShapePredictorData::read_compact(std::span<const std::uint8_t> bytes,
+                                                    std::shared_ptr<const void> owner) {
+  const auto fail = [](const std::string& what) -> void { throw ShapePredictorFormatError(what); };
+  if (!is_compact(bytes) || bytes.size() < kCompactHeaderSize)
+    fail("not a lipdrive predictor file (no LPDPRED header)");
+  if (const std::uint32_t version = get_u32(bytes, 8); version != kCompactVersion)
+    fail("predictor file version " + std::to_string(version) + "; this lipdrive reads version " +
+         std::to_string(kCompactVersion));
+  if (const std::uint32_t landmarks = get_u32(bytes, 12); landmarks != kNumLandmarks)
+    fail("predicts " + std::to_string(landmarks) + " landmarks; lipdrive needs the 68 iBUG landmarks");
+  const CompactCounts counts{get_u32(bytes, 16), get_u32(bytes, 20), get_u32(bytes, 24), get_u32(bytes, 28),
+                             get_u64(bytes, 32)};
+  if (counts.depth < 1 || counts.depth > kMaxTreeDepth || counts.cascades < 1 || counts.trees < counts.cascades ||
+      counts.features < counts.cascades || counts.trees > kMaxCompactTrees || counts.features > kMaxCompactFeatures ||
+      counts.detector_bytes > bytes.size())
+    fail("implausible sizes in the header");
+  const CompactLayout layout = compact_layout(counts);
+  if (get_u64(bytes, 40) != layout.end - kCompactHeaderSize || bytes.size() != layout.end)
+    fail("the file is " + std::to_string(bytes.size()) + " bytes; its header says " + std::to_string(layout.end) +
+         " (truncated or padded)");
+  if (crc32(bytes.subspan(kCompactHeaderSize)) != get_u32(bytes, 48)) fail("checksum mismatch (the file is corrupt)");
+
+  ShapePredictorData d([&] {
+    try {
+      return FaceDetector::deserialize(bytes.subspan(layout.detector, counts.detector_bytes));
+    } catch (const std::runtime_error& e) {
+      throw ShapePredictorFormatError(e.what());
+    }
+  }());
+  const std::size_t splits_per_tree = (std::size_t{1} << counts.depth) - 1, leaves_per_tree = splits_per_tree + 1;
+  d.tree_depth_ = static_cast<int>(counts.depth);
+  d.initial_shape_ = view_of<float>(bytes, layout.initial_shape, kShapeSize);
+  d.cascade_first_tree_ = view_of<std::int32_t>(bytes, layout.cascade_first_tree, counts.cascades + 1);
+  d.cascade_first_feature_ = view_of<std::int32_t>(bytes, layout.cascade_first_feature, counts.cascades + 1);
+  d.anchor_ = view_of<std::uint16_t>(bytes, layout.anchor, counts.features);
+  d.delta_ = view_of<float>(bytes, layout.delta, 2 * std::size_t{counts.features});
+  d.splits_ = view_of<Split>(bytes, layout.splits, counts.trees * splits_per_tree);
+  d.leaf_values_ = view_of<float>(bytes, layout.leaf_values, counts.trees * leaves_per_tree * kShapeSize);
+
+  // Every offset and index, before anything is evaluated.
+  const auto ascending = [&](std::span<const std::int32_t> first, std::uint32_t total, int max_step) {
+    if (first.front() != 0 || first.back() != static_cast<std::int32_t>(total)) return false;
+    for (std::size_t c = 1; c < first.size(); ++c)
+      if (first[c] <= first[c - 1] || first[c] - first[c - 1] > max_step) return false;
+    return true;
+  };
+  if (!ascending(d.cascade_first_tree_, counts.trees, static_cast<int>(kMaxCompactTrees)) ||
+      !ascending(d.cascade_first_feature_, counts.features, 65535))
+    fail("bad cascade table");
+  for (const std::uint16_t a : d.anchor_)
+    if (a >= kNumLandmarks) fail("feature pixel anchored to a missing landmark");
+  for (int c = 0; c < static_cast<int>(counts.cascades); ++c) {
+    const int features = d.cascade_first_feature_[c + 1] - d.cascade_first_feature_[c];
+    const auto first = static_cast<std::size_t>(d.cascade_first_tree_[c]) * splits_per_tree;
+    const auto end = static_cast<std::size_t>(d.cascade_first_tree_[c + 1]) * splits_per_tree;
+    for (std::size_t i = first; i < end; ++i)
+      if (d.splits_[i].first >= features || d.splits_[i].second >= features || !std::isfinite(d.splits_[i].threshold))
+        fail("split " + std::to_string(i) + " refers to a missing feature pixel");
+  }
+  const auto finite = [](std::span<const float> v) {
+    return std::all_of(v.begin(), v.end(), [](float x) { return std::isfinite(x); });
+  };
+  if (!finite(d.initial_shape_) || !finite(d.delta_)) fail("non-finite values");
+  d.max_features_ = largest_cascade(d.cascade_first_feature_);
+  d.storage_ = std::move(owner);
   return d;
 }
 

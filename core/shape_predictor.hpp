@@ -1,16 +1,50 @@
 // Landmark prediction by an Ensemble of Regression Trees (Kazemi & Sullivan, "One
 // Millisecond Face Alignment with an Ensemble of Regression Trees", CVPR 2014), evaluated
-// over the data of a dlib shape predictor (.dat) without allocating per frame.
+// over the data of a dlib shape predictor without allocating per frame.
 //
 // dlib::shape_predictor::operator() allocates on every call (the result's vector, the
 // feature pixel vector, the similarity fit's point lists), which the live pipeline must
 // not do. ShapePredictorData holds the same trees in flat arrays; ShapePredictor owns the
 // per-call scratch. The arithmetic follows dlib's step for step (float shape, double
 // similarity transform, nearest-pixel lookup, 0 outside the image), so the same pixels are
-// read, the same leaves are chosen and the landmarks agree with dlib's to float precision;
-// unlike dlib's rounded `point`s, the result keeps the sub-pixel position.
+// read and the same leaves are chosen; unlike dlib's rounded `point`s, the result keeps the
+// sub-pixel position (tests/test_face_tracker.cpp compares every leaf and landmark with dlib's).
+// The leaf increments stay 32-bit floats: with 16-bit ones the shape moves by ~0.005 px, which
+// is enough for a few feature pixels a cascade to be read one pixel over, and 4 % of the trees
+// then chose another leaf (0.004 inter-ocular distances from dlib's landmarks on LFPW).
+//
+// Two sources: dlib's own .dat serialization (read_dlib, seconds: ~95 MB of small objects),
+// and lipdrive's compact .lpp file (read_compact: the arrays as they are used, mapped from
+// the file, with the face detector the predictor was trained with; milliseconds). Layout of
+// the .lpp, version 1; integers and floats little-endian (IEEE-754 binary32):
+//
+//   offset  size  field
+//        0     8  magic "LPDPRED" + NUL
+//        8     4  u32 format version = 1
+//       12     4  u32 landmarks = 68
+//       16     4  u32 tree depth D (1..8): 2^D - 1 splits and 2^D leaves per tree
+//       20     4  u32 cascades C
+//       24     4  u32 trees T, all cascades
+//       28     4  u32 feature pixels F, all cascades
+//       32     8  u64 face detector bytes B
+//       40     8  u64 payload length (the bytes after this 64-byte header)
+//       48     4  u32 CRC-32 of the payload (core/checksum.hpp)
+//       52    12  reserved, zero
+//       64        payload, each array starting at a multiple of 64 bytes from the file's start:
+//                   f32[136]               mean shape, box-normalised (x0, y0, x1, ...)
+//                   i32[C + 1]             first tree of each cascade, then T
+//                   i32[C + 1]             first feature pixel of each cascade, then F
+//                   u16[F]                 landmark each feature pixel is anchored to
+//                   f32[2F]                its offset from the anchor in the mean shape
+//                   {u16, u16, f32}[T (2^D - 1)]  splits, breadth first within a tree: go to
+//                                          the left child when pixel[a] - pixel[b] > threshold
+//                   f32[T 2^D 136]         leaf increments, leaf after leaf, tree after tree
+//                   u8[B]                  the face detector, dlib's serialization
+//
+// The file ends at the end of the payload.
 #pragma once
 
+#include "core/face_detector.hpp"
 #include "core/landmarks.hpp"
 
 #include <opencv2/core/mat.hpp>
@@ -24,31 +58,33 @@
 
 namespace lipdrive {
 
-/// A face box in image pixels with inclusive corners, the convention of dlib::rectangle
-/// (a 100 px wide box has right = left + 99).
-struct FaceBox {
-  long left = 0, top = 0, right = -1, bottom = -1;
-
-  long width() const { return right - left + 1; }
-  long height() const { return bottom - top + 1; }
-  bool empty() const { return right < left || bottom < top; }
-};
-
-/// The stream does not hold a dlib shape predictor, or one lipdrive cannot use.
+/// The bytes do not hold a shape predictor lipdrive can use (.dat or .lpp).
 class ShapePredictorFormatError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
 
-/// The trees of a trained predictor, immutable once read: share one instance (the Debian
-/// 68-point model is ~95 MB) between every tracker through a shared_ptr<const ...>.
+/// The trees of a trained predictor and the face detector it was trained with, immutable once
+/// read: share one instance between every tracker through a shared_ptr<const ...>.
 class ShapePredictorData {
  public:
   /// Reads the fields of a serialized dlib::shape_predictor in the order dlib's
-  /// deserialize(shape_predictor&, istream&) reads them, with dlib's own deserializers.
-  /// Throws ShapePredictorFormatError when the stream is not a shape predictor, its trees
-  /// are not complete binary trees of one depth, or it does not predict 68 landmarks.
-  static ShapePredictorData read_dlib(std::istream& in);
+  /// deserialize(shape_predictor&, istream&) reads them, with dlib's own deserializers. A .dat
+  /// holds no detector: `detector` makes the one the predictor was trained with (dlib's
+  /// 68-point models: FaceDetector::builtin), called once the predictor has been read. Throws
+  /// ShapePredictorFormatError when the stream is not a shape predictor, its trees are not
+  /// complete binary trees of one depth, or it does not predict 68 landmarks.
+  static ShapePredictorData read_dlib(std::istream& in, FaceDetector (*detector)());
+
+  /// Whether `bytes` start like an .lpp file (its magic).
+  static bool is_compact(std::span<const std::uint8_t> bytes);
+  /// Uses the .lpp file in `bytes` in place: the result points into them, and keeps `owner`
+  /// (whatever holds the bytes, e.g. a mapping of the file) alive as long as it lives. Every
+  /// count, offset and index is checked before use. Throws ShapePredictorFormatError naming
+  /// what is wrong.
+  static ShapePredictorData read_compact(std::span<const std::uint8_t> bytes, std::shared_ptr<const void> owner);
+  /// The .lpp file of this predictor.
+  std::vector<std::uint8_t> write_compact() const;
 
   int num_cascades() const { return static_cast<int>(cascade_first_tree_.size()) - 1; }
   int num_trees() const { return cascade_first_tree_.back(); }
@@ -56,31 +92,38 @@ class ShapePredictorData {
   /// Feature pixels of the largest cascade: the size of a ShapePredictor's scratch.
   int max_features_per_cascade() const { return max_features_; }
 
+  /// The detector whose boxes the predictor was trained on; a tracker works on its own copy.
+  const FaceDetector& detector() const { return detector_; }
+
   /// The box in which the predictor's mean shape best matches `landmarks` (least squares
   /// over scale and translation; rigid landmarks 17..47 only, so speech does not move it):
   /// how a tracker turns the last frame's landmarks into this frame's box, consistent
   /// with the detector boxes the predictor was trained on.
   FaceBox box_for(const Landmarks2D& landmarks) const;
 
- private:
-  friend class ShapePredictor;
-  ShapePredictorData() = default;
-
   static constexpr int kShapeSize = 2 * kNumLandmarks;  // x0,y0,x1,y1,... in box units [0,1]
 
-  int tree_depth_ = 0;  // splits per tree = 2^depth - 1, leaves = 2^depth
-  int max_features_ = 0;
-  std::vector<float> initial_shape_;        // kShapeSize: the mean shape, box-normalised
-  std::vector<int> cascade_first_tree_;     // cascades + 1 offsets into the tree arrays
-  std::vector<int> cascade_first_feature_;  // cascades + 1 offsets into anchor/delta arrays
-  std::vector<std::uint16_t> anchor_;       // landmark each feature pixel is attached to
-  std::vector<float> delta_;                // 2 per feature: offset from its anchor in the mean shape
-  struct Split {                            // go to the left child when pixel[first] - pixel[second] > threshold
+  struct Split {  // go to the left child when pixel[first] - pixel[second] > threshold
     std::uint16_t first, second;
     float threshold;
   };
-  std::vector<Split> splits_;       // breadth-first within a tree, tree after tree
-  std::vector<float> leaf_values_;  // per leaf: kShapeSize shape increments
+
+ private:
+  friend class ShapePredictor;
+  explicit ShapePredictorData(FaceDetector detector) : detector_(std::move(detector)) {}
+
+  int tree_depth_ = 0;  // splits per tree = 2^depth - 1, leaves = 2^depth
+  int max_features_ = 0;
+  // Views of the arrays of the .lpp layout above, in `storage_`.
+  std::span<const float> initial_shape_;                 // kShapeSize: the mean shape
+  std::span<const std::int32_t> cascade_first_tree_;     // cascades + 1 offsets into the tree arrays
+  std::span<const std::int32_t> cascade_first_feature_;  // cascades + 1 offsets into anchor/delta arrays
+  std::span<const std::uint16_t> anchor_;                // landmark each feature pixel is attached to
+  std::span<const float> delta_;                         // 2 per feature: offset from its anchor
+  std::span<const Split> splits_;                        // breadth-first within a tree, tree after tree
+  std::span<const float> leaf_values_;                   // per leaf: kShapeSize shape increments
+  std::shared_ptr<const void> storage_;                  // the mapped file, or the arrays read_dlib built
+  FaceDetector detector_;
 };
 
 /// Evaluates shared predictor data with its own scratch; one per thread.
@@ -97,7 +140,7 @@ class ShapePredictor {
   float feature_contrast() const;
 
   /// The leaf chosen in each tree by the last predict(), tree after tree: lets a test
-  /// check that every decision agrees with dlib's.
+  /// compare every decision with dlib's.
   std::span<const std::uint8_t> last_leaves() const { return leaves_; }
 
   const std::shared_ptr<const ShapePredictorData>& data() const { return data_; }

@@ -1,15 +1,18 @@
-// The landmark predictor, loaded once per test binary: the Debian model is ~95 MB and
-// takes seconds to read, and every tracker in a test can share it.
+// The landmark predictor, loaded once per test binary: the compact file the build converts
+// from Debian's dlib model (maps in milliseconds), shared by every tracker in a test.
 #pragma once
 
 #include "firmware_app/config/predictor_file.hpp"
 
+#include <filesystem>
 #include <memory>
 
 namespace lipdrive::test {
 
+inline const std::filesystem::path kPredictor = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "face_landmarks.lpp";
+
 inline std::shared_ptr<const ShapePredictorData> shared_predictor() {
-  static const auto data = load_predictor_file(kDefaultPredictorPath);
+  static const auto data = load_predictor_file(kPredictor);
   return data;
 }
 

@@ -67,7 +67,7 @@ cv::Mat generated_face() {
 const dlib::shape_predictor& dlib_predictor() {
   static const dlib::shape_predictor predictor = [] {
     dlib::shape_predictor p;
-    dlib::deserialize(kDefaultPredictorPath) >> p;
+    dlib::deserialize(kDebianPredictorPath) >> p;
     return p;
   }();
   return predictor;
@@ -78,53 +78,75 @@ dlib::frontal_face_detector& dlib_detector() {
   return detector;
 }
 
-// Runs both predictors on `box` and expects identical decisions: the same leaf in every
-// tree means the same leaf vectors summed in the same order, i.e. dlib's float shape
-// exactly; dlib then rounds to whole pixels, ours keeps the sub-pixel position.
-void expect_matches_dlib(const cv::Mat& gray, const dlib::rectangle& rect, const std::string& what) {
-  ShapePredictor ours(test::shared_predictor());
-  Landmarks2D landmarks;
-  ours.predict(gray, FaceBox{rect.left(), rect.top(), rect.right(), rect.bottom()}, landmarks);
-
-  std::vector<std::pair<unsigned long, double>> features;
-  const dlib::full_object_detection theirs = dlib_predictor()(dlib::cv_image<unsigned char>(gray), rect, features);
-  const auto leaves = ours.last_leaves();
-  ASSERT_EQ(features.size(), leaves.size()) << what;
-  const unsigned long leaves_per_tree = 1ul << test::shared_predictor()->tree_depth();
-  int different_leaves = 0;
-  for (std::size_t t = 0; t < leaves.size(); ++t)
-    different_leaves += features[t].first - t * leaves_per_tree != leaves[t];
-  EXPECT_EQ(different_leaves, 0) << what;
-
-  ASSERT_EQ(theirs.num_parts(), static_cast<unsigned long>(kNumLandmarks));
-  for (int i = 0; i < kNumLandmarks; ++i) {
-    // floor(x + 0.5) is dlib's conversion to point.
-    EXPECT_NEAR(landmarks(0, i), theirs.part(i).x(), 0.5 + 1e-3) << what << " landmark " << i;
-    EXPECT_NEAR(landmarks(1, i), theirs.part(i).y(), 0.5 + 1e-3) << what << " landmark " << i;
-  }
-}
-
 std::vector<dlib::rectangle> detect(const cv::Mat& gray) {
   return dlib_detector()(dlib::cv_image<unsigned char>(gray));
 }
 
-TEST(ShapePredictor, MatchesDlibOnGridFrames) {
+/// Our predictor (the compact file the build converts from Debian's) against dlib's own on
+/// face boxes: the mean distance of the 68 landmarks over the inter-ocular distance, and how
+/// many trees chose dlib's leaf. The same arithmetic on the same floats: every leaf agrees, and
+/// the landmarks rounded as dlib rounds them are dlib's.
+struct Agreement {
+  int boxes = 0;
+  double sum_iod = 0, worst_iod = 0;
+  long trees = 0, same_leaves = 0;
+
+  void add(const cv::Mat& gray, const dlib::rectangle& rect) {
+    ShapePredictor ours(test::shared_predictor());
+    Landmarks2D landmarks;
+    ours.predict(gray, FaceBox{rect.left(), rect.top(), rect.right(), rect.bottom()}, landmarks);
+    std::vector<std::pair<unsigned long, double>> features;
+    const dlib::full_object_detection theirs = dlib_predictor()(dlib::cv_image<unsigned char>(gray), rect, features);
+    const auto leaves = ours.last_leaves();
+    ASSERT_EQ(features.size(), leaves.size());
+    ASSERT_EQ(theirs.num_parts(), static_cast<unsigned long>(kNumLandmarks));
+    const unsigned long leaves_per_tree = 1ul << test::shared_predictor()->tree_depth();
+    for (std::size_t t = 0; t < leaves.size(); ++t) same_leaves += features[t].first - t * leaves_per_tree == leaves[t];
+    trees += static_cast<long>(leaves.size());
+    // dlib rounds its points to whole pixels (floor(x + 0.5)): compare ours rounded alike.
+    Landmarks2D dlib_points, rounded = (landmarks.array() + 0.5).floor();
+    for (int i = 0; i < kNumLandmarks; ++i) dlib_points.col(i) << theirs.part(i).x(), theirs.part(i).y();
+    const double iod = interocular_distance(dlib_points);
+    const double distance = (rounded - dlib_points).colwise().norm().mean() / iod;
+    sum_iod += distance;
+    worst_iod = std::max(worst_iod, distance);
+    ++boxes;
+  }
+  double mean_iod() const { return sum_iod / std::max(boxes, 1); }
+  std::string summary() const {
+    return fmt::format(
+        "{} boxes: mean point difference {:.2e} inter-ocular distances (worst box {:.2e}); "
+        "{:.3f} % of {} trees chose dlib's leaf",
+        boxes, mean_iod(), worst_iod, 100.0 * same_leaves / std::max(trees, 1L), trees);
+  }
+};
+
+TEST(ShapePredictor, MatchesDlibOnGridFramesAndLfpwPhotographs) {
   LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir / "bbaf2n.mpg");
-  int compared = 0;
+  Agreement grid, shifted, lfpw;
   for (const char* clip : {"bbaf2n", "lgaf4n"}) {
     const auto frames = grid_frames(clip);
     for (std::size_t f = 0; f < frames.size(); f += 7) {
       const auto faces = detect(frames[f]);
       ASSERT_FALSE(faces.empty()) << clip << " frame " << f;
-      expect_matches_dlib(frames[f], faces.front(), std::string(clip) + " frame " + std::to_string(f));
+      grid.add(frames[f], faces.front());
       // A box that is shifted and partly outside the image: out-of-image pixels read 0.
-      expect_matches_dlib(frames[f],
-                          dlib::translate_rect(faces.front(), -static_cast<long>(faces.front().width()) / 2, 30),
-                          std::string(clip) + " shifted box, frame " + std::to_string(f));
-      ++compared;
+      shifted.add(frames[f], dlib::translate_rect(faces.front(), -static_cast<long>(faces.front().width()) / 2, 30));
     }
   }
-  EXPECT_GT(compared, 0) << "no frames read from the GRID clips in " << kGridDir;
+  for (const auto& entry : std::filesystem::directory_iterator(test::shared_fixtures() / "lfpw_train")) {
+    if (entry.path().extension() != ".png") continue;
+    const cv::Mat gray = cv::imread(entry.path().string(), cv::IMREAD_GRAYSCALE);
+    for (const dlib::rectangle& face : detect(gray)) lfpw.add(gray, face);
+  }
+  for (const auto& [name, agreement] :
+       {std::pair{"grid", &grid}, std::pair{"grid_shifted_boxes", &shifted}, std::pair{"lfpw", &lfpw}}) {
+    fmt::print("compact predictor against dlib's, {}: {}\n", name, agreement->summary());
+    RecordProperty(fmt::format("against_dlib_{}", name), agreement->summary());
+    EXPECT_GT(agreement->boxes, 0) << name;
+    EXPECT_EQ(agreement->same_leaves, agreement->trees) << name << ": " << agreement->summary();
+    EXPECT_EQ(agreement->worst_iod, 0) << name << ": " << agreement->summary();
+  }
 }
 
 TEST(ShapePredictor, MatchesDlibOnGeneratedFace) {
@@ -135,11 +157,78 @@ TEST(ShapePredictor, MatchesDlibOnGeneratedFace) {
   cv::Mat rotated;
   const cv::Mat turn = cv::getRotationMatrix2D(cv::Point2f(face.cols / 2.f, face.rows / 2.f), 12, 0.7);
   cv::warpAffine(face, rotated, turn, face.size());
+  Agreement agreement;
   for (const cv::Mat& image : {face, rotated}) {
     const auto faces = detect(image);
     ASSERT_FALSE(faces.empty());
-    expect_matches_dlib(image, faces.front(), "generated face");
+    agreement.add(image, faces.front());
   }
+  fmt::print("compact predictor against dlib's, generated face: {}\n", agreement.summary());
+  EXPECT_EQ(agreement.same_leaves, agreement.trees) << agreement.summary();
+  EXPECT_EQ(agreement.worst_iod, 0) << agreement.summary();
+}
+
+// The compact file holds exactly what reading dlib's file gives: the same landmarks, bit for
+// bit, and the same face detections.
+TEST(ShapePredictor, CompactFileHoldsWhatTheDlibFileGives) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  std::ifstream in(kDebianPredictorPath, std::ios::binary);
+  auto from_dlib = std::make_shared<const ShapePredictorData>(
+      ShapePredictorData::read_dlib(in, [] { return test::shared_predictor()->detector(); }));
+  auto bytes = std::make_shared<const std::vector<std::uint8_t>>(from_dlib->write_compact());
+  auto compact = std::make_shared<const ShapePredictorData>(ShapePredictorData::read_compact(*bytes, bytes));
+  EXPECT_EQ(compact->num_trees(), from_dlib->num_trees());
+  EXPECT_EQ(compact->num_cascades(), from_dlib->num_cascades());
+  const auto frames = read_gray_frames(kFixtureDir / "talking_face.avi");
+  ASSERT_GT(frames.size(), 20u);
+  ShapePredictor a(from_dlib), b(compact);
+  FaceDetector detector = compact->detector();
+  for (std::size_t f = 0; f < frames.size(); f += 10) {
+    const auto faces = detector.detect(frames[f]);
+    ASSERT_FALSE(faces.empty()) << "frame " << f;
+    Landmarks2D la, lb;
+    a.predict(frames[f], faces.front(), la);
+    b.predict(frames[f], faces.front(), lb);
+    EXPECT_EQ(la, lb) << "frame " << f;
+    EXPECT_TRUE(std::equal(a.last_leaves().begin(), a.last_leaves().end(), b.last_leaves().begin()));
+  }
+}
+
+// A damaged .lpp is an error naming the file and what is wrong, never a crash.
+TEST(ShapePredictor, DamagedCompactFilesAreErrors) {
+  const std::vector<std::uint8_t> good = test::shared_predictor()->write_compact();
+  const auto dir = std::filesystem::temp_directory_path() / "lipdrive_test_compact_predictor";
+  std::filesystem::create_directories(dir);
+  const auto expect_error = [&](const std::vector<std::uint8_t>& bytes, const std::string& text, const char* what) {
+    const auto path = dir / "damaged.lpp";
+    std::ofstream(path, std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    try {
+      load_predictor_file(path);
+      ADD_FAILURE() << what << ": accepted";
+    } catch (const CommandError& e) {
+      EXPECT_EQ(e.exit_code(), kExitDataError) << what;
+      EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << what << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << what << ": " << e.what();
+    }
+  };
+  auto truncated = good;
+  truncated.resize(good.size() / 2);
+  expect_error(truncated, "truncated", "half the file");
+  expect_error({good.begin(), good.begin() + 40}, "no LPDPRED header", "a cut header");
+  auto flipped = good;
+  flipped[good.size() / 3] ^= 0x10;
+  expect_error(flipped, "checksum", "one bit flipped");
+  auto version = good;
+  version[8] = 7;
+  expect_error(version, "version 7", "a later version");
+  auto landmarks = good;
+  landmarks[12] = 5;
+  expect_error(landmarks, "5 landmarks", "a 5-point predictor");
+  auto trees = good;
+  trees[26] ^= 0x01;  // the tree count: the arrays no longer add up to the file
+  expect_error(trees, "header says", "a wrong tree count");
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {

@@ -364,8 +364,8 @@ void add_process_command(CLI::App& app) {
                   "landmarks used by the fit (docs/method.md; default: [model] landmark_set, else F4)")
       ->check(CLI::IsMember(std::vector<std::string>(kLandmarkSetNames.begin(), kLandmarkSetNames.end())));
   cmd->add_option("--predictor", options->predictor,
-                  fmt::format("dlib 68-point shape predictor (.dat; default: [tracker] predictor, else {})",
-                              kDefaultPredictorPath));
+                  fmt::format("landmark predictor (.lpp or dlib .dat; default: [tracker] predictor, else {})",
+                              default_predictor_path().string()));
   cmd->add_flag("--include-landmarks", options->include_landmarks, "add the tracked landmarks x0..x67,y0..y67");
   cmd->add_flag("--stats", options->stats, "print per-stage latency and frames per second on stderr");
   cmd->add_option("--side", options->side, "side-camera recording of the same take: adds protrusion_side");

@@ -16,5 +16,6 @@ void add_plot_command(CLI::App& app);          // plot
 void add_calibrate_command(CLI::App& app);     // calibrate
 void add_run_command(CLI::App& app);           // run: the daemon
 void add_check_config_command(CLI::App& app);  // check-config
+void add_predictor_command(CLI::App& app);     // predictor convert | info
 
 }  // namespace lipdrive

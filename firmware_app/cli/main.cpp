@@ -16,5 +16,6 @@ int main(int argc, char** argv) {
   lipdrive::add_calibrate_command(app);
   lipdrive::add_run_command(app);
   lipdrive::add_check_config_command(app);
+  lipdrive::add_predictor_command(app);
   return lipdrive::run_cli(app, argc, argv);
 }

@@ -178,8 +178,9 @@ void read_model(Section model, Config& config) {
 }
 
 void read_tracker(Section tracker, Config& config) {
-  config.tracker.predictor =
-      existing(tracker, "predictor", tracker.string("predictor", config.tracker.predictor.string()), "predictor file");
+  const std::string file = tracker.string("predictor", "");
+  if (!file.empty()) config.tracker.predictor = file;
+  existing(tracker, "predictor", config.tracker.predictor, "predictor file");
   tracker.reject_unknown_keys();
 }
 

@@ -113,7 +113,7 @@ struct Config {
   } model;
 
   struct Tracker {
-    std::filesystem::path predictor = kDefaultPredictorPath;
+    std::filesystem::path predictor = default_predictor_path();
   } tracker;
 
   struct Camera {

@@ -62,8 +62,11 @@ MorphableModel load_model_file(const std::filesystem::path& path) {
 }
 
 void save_model_file(const std::filesystem::path& path, const MorphableModel& model) {
-  const auto bytes = serialize_model(model);
-  // The pid keeps two concurrent writers of the same model from sharing a temp file.
+  replace_file(path, serialize_model(model));
+}
+
+void replace_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
+  // The pid keeps two concurrent writers of the same file from sharing a temp file.
   auto temp = path;
   temp += fmt::format(".tmp{}", ::getpid());
   {

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <span>
 
 namespace lipdrive {
 
@@ -15,9 +16,12 @@ namespace lipdrive {
 /// missing or unreadable, kExitDataError (with the ModelFormatError text) when invalid.
 MorphableModel load_model_file(const std::filesystem::path& path);
 
-/// Writes a .lpm model file through a temporary file and a rename, so a reader
-/// never sees a half-written model.
+/// Writes a .lpm model file through replace_file.
 void save_model_file(const std::filesystem::path& path, const MorphableModel& model);
+
+/// Writes `bytes` to `path` through a temporary file and a rename, so a reader never sees a
+/// half-written file. Throws CommandError naming the file.
+void replace_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 
 /// Reads a Wavefront OBJ with triangulated faces only (tinyobjloader); all
 /// shapes are concatenated in file order.

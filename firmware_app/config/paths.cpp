@@ -16,6 +16,8 @@ std::filesystem::path model_directory() {
 
 std::filesystem::path default_model_path() { return model_directory() / "default.lpm"; }
 
+std::filesystem::path default_predictor_path() { return model_directory() / "face_landmarks.lpp"; }
+
 std::filesystem::path default_fixture_path() {
   const auto exe_dir = exe_directory();
   const auto build_tree = exe_dir / "fixtures" / "talking_face.avi";

@@ -5,14 +5,17 @@
 
 namespace lipdrive {
 
-/// The landmark predictor Debian's libdlib-data installs (research-only licence; see README).
-inline constexpr const char* kDefaultPredictorPath = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
+/// The landmark predictor Debian's libdlib-data installs (research-only licence; see README);
+/// the build converts it into default_predictor_path().
+inline constexpr const char* kDebianPredictorPath = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
 
 /// The directory holding the default models: <exe dir>/models in a build tree,
 /// <prefix>/share/lipdrive/models when installed.
 std::filesystem::path model_directory();
 /// The 161-pose default model in model_directory().
 std::filesystem::path default_model_path();
+/// The default landmark predictor: the compact face_landmarks.lpp in model_directory().
+std::filesystem::path default_predictor_path();
 /// The generated talking-face clip the simulated camera replays by default:
 /// <exe dir>/fixtures/talking_face.avi in a build tree, <prefix>/share/lipdrive/talking_face.avi installed.
 std::filesystem::path default_fixture_path();

@@ -1,10 +1,13 @@
 #include "firmware_app/config/predictor_file.hpp"
 
+#include "drivers/mapped_file.hpp"
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/model_files.hpp"
 
 #include <fmt/format.h>
 
 #include <fstream>
+#include <system_error>
 
 namespace lipdrive {
 
@@ -12,13 +15,28 @@ std::shared_ptr<const ShapePredictorData> load_predictor_file(const std::filesys
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw CommandError(fmt::format("{}: no such landmark predictor file", path.string()), kExitNoInput);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw CommandError(fmt::format("{}: cannot open for reading", path.string()), kExitNoInput);
+  std::shared_ptr<const MappedFile> file;
   try {
-    return std::make_shared<const ShapePredictorData>(ShapePredictorData::read_dlib(in));
+    file = std::make_shared<const MappedFile>(path);
+  } catch (const std::system_error& e) {
+    throw CommandError(e.what(), kExitNoInput);
+  }
+  try {
+    if (ShapePredictorData::is_compact(file->bytes())) {
+      const auto bytes = file->bytes();
+      return std::make_shared<const ShapePredictorData>(ShapePredictorData::read_compact(bytes, std::move(file)));
+    }
+    file.reset();
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw CommandError(fmt::format("{}: cannot open for reading", path.string()), kExitNoInput);
+    return std::make_shared<const ShapePredictorData>(ShapePredictorData::read_dlib(in, &FaceDetector::builtin));
   } catch (const ShapePredictorFormatError& e) {
     throw CommandError(fmt::format("{}: {}", path.string(), e.what()), kExitDataError);
   }
+}
+
+void save_compact_predictor_file(const std::filesystem::path& path, const ShapePredictorData& predictor) {
+  replace_file(path, predictor.write_compact());
 }
 
 }  // namespace lipdrive

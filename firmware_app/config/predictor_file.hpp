@@ -1,6 +1,8 @@
-// Landmark predictor files: any dlib shape predictor (.dat) that predicts the 68 iBUG
-// landmarks, e.g. Debian's (research-only licence, see core/face_tracker.hpp) or a
-// user-trained one.
+// Landmark predictor files: lipdrive's compact .lpp (mapped in place, with its face detector;
+// core/shape_predictor.hpp has the layout), or any dlib shape predictor (.dat) that predicts
+// the 68 iBUG landmarks, e.g. Debian's (research-only licence, see core/face_tracker.hpp) or
+// a user-trained one. `lipdrive predictor convert` turns a .dat into an .lpp; the build does
+// it for Debian's.
 #pragma once
 
 #include "core/shape_predictor.hpp"
@@ -11,8 +13,12 @@
 
 namespace lipdrive {
 
-/// Reads a predictor file. Throws CommandError naming the path: kExitNoInput when it is
-/// missing or unreadable, kExitDataError when it is not a 68-point dlib shape predictor.
+/// Reads a predictor file, an .lpp (told by its header) or a dlib .dat. Throws CommandError
+/// naming the path: kExitNoInput when it is missing or unreadable, kExitDataError when it is
+/// not a 68-point predictor.
 std::shared_ptr<const ShapePredictorData> load_predictor_file(const std::filesystem::path& path);
+
+/// Writes `predictor` as an .lpp file (replace_file: never half-written).
+void save_compact_predictor_file(const std::filesystem::path& path, const ShapePredictorData& predictor);
 
 }  // namespace lipdrive

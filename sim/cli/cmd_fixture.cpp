@@ -32,7 +32,7 @@ namespace fs = std::filesystem;
 struct TalkingFaceArgs {
   fs::path portrait;
   fs::path out;
-  fs::path predictor = kDefaultPredictorPath;
+  fs::path predictor = kDebianPredictorPath;
   double fps = 25;
 };
 

@@ -1,0 +1,57 @@
+// Face detection: dlib's HOG frontal face detector (Dalal & Triggs, "Histograms of Oriented
+// Gradients for Human Detection", CVPR 2005: HOG features, a linear SVM, an image pyramid),
+// the detector whose boxes dlib's 68-point landmark predictor was trained on.
+//
+// dlib ships the detector compressed inside its headers; decoding it takes about a second of
+// CPU, so it is decoded once per predictor file (ShapePredictorData holds it), or read in a
+// few milliseconds from the compact predictor file, which stores it decoded. Each tracker
+// works on a copy of its own: detection keeps scratch inside the detector.
+#pragma once
+
+#include <opencv2/core/mat.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace lipdrive {
+
+/// A face box in image pixels with inclusive corners, the convention of dlib::rectangle
+/// (a 100 px wide box has right = left + 99).
+struct FaceBox {
+  long left = 0, top = 0, right = -1, bottom = -1;
+
+  long width() const { return right - left + 1; }
+  long height() const { return bottom - top + 1; }
+  long area() const { return empty() ? 0 : width() * height(); }
+  bool empty() const { return right < left || bottom < top; }
+};
+
+class FaceDetector {
+ public:
+  /// dlib's built-in frontal face detector, decoded (about a second of CPU).
+  static FaceDetector builtin();
+  /// A detector from the bytes serialize() wrote. Throws std::runtime_error when they do not
+  /// hold one.
+  static FaceDetector deserialize(std::span<const std::uint8_t> bytes);
+  /// dlib's serialization of the decoded detector.
+  std::vector<std::uint8_t> serialize() const;
+
+  FaceDetector(const FaceDetector& other);
+  FaceDetector& operator=(const FaceDetector& other);
+  FaceDetector(FaceDetector&&) noexcept;
+  FaceDetector& operator=(FaceDetector&&) noexcept;
+  ~FaceDetector();
+
+  /// The faces in the luma image `gray` (CV_8UC1), largest first. Allocates (it runs only
+  /// to acquire a face).
+  std::vector<FaceBox> detect(const cv::Mat& gray);
+
+ private:
+  struct Hog;  // dlib::frontal_face_detector, kept out of this header
+  explicit FaceDetector(std::unique_ptr<Hog> hog);
+  std::unique_ptr<Hog> hog_;
+};
+
+}  // namespace lipdrive
