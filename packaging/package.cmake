@@ -43,8 +43,12 @@ set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
 set(CPACK_STRIP_FILES ON)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
-# Not linked, but used: dlib's landmark predictor (the default [tracker] predictor), the
-# maintainer scripts' systemd-sysusers and deb-systemd-helper. olad only for DMX output.
+# Everything `cmake --install` installs but the compact predictor, which postinst makes from
+# libdlib-data's on the rig.
+set(CPACK_INSTALL_CMAKE_PROJECTS "${CMAKE_BINARY_DIR};${PROJECT_NAME};Unspecified;/")
+# Not linked, but used: dlib's landmark predictor (postinst converts it to the default [tracker]
+# predictor), the maintainer scripts' systemd-sysusers and deb-systemd-helper. olad only for DMX
+# output.
 set(CPACK_DEBIAN_PACKAGE_DEPENDS
     "libdlib-data, systemd | systemd-standalone-sysusers | systemd-sysusers, init-system-helpers (>= 1.65~)")
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "ola")

@@ -6,6 +6,7 @@
 //
 // The package, its contents list and lintian's output stay in <build>/test_artifacts/package.
 #include "command_run.hpp"
+#include "firmware_app/config/paths.hpp"
 #include "daemon_process.hpp"
 
 #include <gmock/gmock.h>
@@ -206,6 +207,11 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   for (const char* dir : {"var/lib/dpkg/info", "var/lib/dpkg/updates", "var/lib/dpkg/triggers", "etc"})
     fs::create_directories(root / dir);
   std::ofstream(root / "var/lib/dpkg/status").flush();
+  // libdlib-data's predictor (a Depends): postinst converts it into the compact file.
+  const fs::path dlib_predictor = root / fs::path(lipdrive::kDebianPredictorPath).relative_path();
+  fs::create_directories(dlib_predictor.parent_path());
+  fs::copy_file(lipdrive::kDebianPredictorPath, dlib_predictor);
+  const fs::path compact_predictor = root / "usr/share/lipdrive/models/face_landmarks.lpp";
 
   const CommandRun install = dpkg_in(root, "--install " + shell_quote(deb_));
   ASSERT_EQ(install.exit_code, 0) << install.output;
@@ -249,6 +255,7 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   ASSERT_TRUE(std::regex_search(run.output, m, std::regex(R"(processed (\d+))"))) << run.output;
   EXPECT_GE(std::stoi(m[1]), 30) << run.output;
   EXPECT_THAT(run.output, HasSubstr(root.string() + "/usr/share/lipdrive/models/default.lpm")) << run.output;
+  EXPECT_THAT(run.output, HasSubstr("predictor " + compact_predictor.string())) << run.output;
   EXPECT_THAT(run.output, HasSubstr(root.string() + "/usr/share/lipdrive/talking_face.avi")) << run.output;
 
   // An upgrade keeps an administrator's disable and a changed configuration.
@@ -263,9 +270,11 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   EXPECT_THAT(read_file(config), HasSubstr("# changed on this rig"));
 
   // Removal keeps the configuration; purge takes it.
+  EXPECT_TRUE(fs::is_regular_file(compact_predictor)) << "postinst converts libdlib-data's predictor";
   const CommandRun remove = dpkg_in(root, "--remove lipdrive");
   ASSERT_EQ(remove.exit_code, 0) << remove.output;
   EXPECT_FALSE(fs::exists(binary));
+  EXPECT_FALSE(fs::exists(compact_predictor)) << "what postinst made goes with the package";
   EXPECT_TRUE(fs::exists(config)) << "a conffile stays until purge";
   const CommandRun purge = dpkg_in(root, "--purge lipdrive");
   ASSERT_EQ(purge.exit_code, 0) << purge.output;

@@ -16,7 +16,11 @@ std::filesystem::path model_directory() {
 
 std::filesystem::path default_model_path() { return model_directory() / "default.lpm"; }
 
-std::filesystem::path default_predictor_path() { return model_directory() / "face_landmarks.lpp"; }
+std::filesystem::path default_predictor_path() {
+  const auto compact = model_directory() / "face_landmarks.lpp";
+  std::error_code ec;
+  return std::filesystem::exists(compact, ec) ? compact : std::filesystem::path(kDebianPredictorPath);
+}
 
 std::filesystem::path default_fixture_path() {
   const auto exe_dir = exe_directory();

@@ -14,7 +14,8 @@ inline constexpr const char* kDebianPredictorPath = "/usr/share/dlib/shape_predi
 std::filesystem::path model_directory();
 /// The 161-pose default model in model_directory().
 std::filesystem::path default_model_path();
-/// The default landmark predictor: the compact face_landmarks.lpp in model_directory().
+/// The default landmark predictor: the compact face_landmarks.lpp in model_directory() (the
+/// build converts Debian's; the package's postinst does on the rig), else Debian's own.
 std::filesystem::path default_predictor_path();
 /// The generated talking-face clip the simulated camera replays by default:
 /// <exe dir>/fixtures/talking_face.avi in a build tree, <prefix>/share/lipdrive/talking_face.avi installed.

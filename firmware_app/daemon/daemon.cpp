@@ -78,8 +78,9 @@ Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const D
   }
   if (options.record || config_.recording.start) recorder_->start(take_file_name(config_.recording.dir));
   pipeline_->start();
-  spdlog::info("running: {}, model {}, landmark set {}", pipeline_->describe_source(), config_.model.file.string(),
-               landmark_set_name(config_.model.landmark_set));
+  spdlog::info("running: {}, model {}, landmark set {}, predictor {}", pipeline_->describe_source(),
+               config_.model.file.string(), landmark_set_name(config_.model.landmark_set),
+               config_.tracker.predictor.string());
 }
 
 void Daemon::poll() {
