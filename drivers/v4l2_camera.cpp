@@ -266,11 +266,17 @@ class StreamOpener {
 };
 
 /// CLOCK_MONOTONIC nanoseconds of the capture: the driver's timestamp when it says it is
-/// monotonic, else the dequeue time (the best bound left).
+/// monotonic and it is a time that has passed (seconds from 0, microseconds below a million,
+/// not after the dequeue), else the dequeue time (the best bound left). The check comes
+/// before any arithmetic: a broken driver's seconds would overflow the conversion.
 std::int64_t capture_time_ns(const v4l2_buffer& buffer) {
-  if ((buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
-    return std::int64_t{buffer.timestamp.tv_sec} * 1'000'000'000 + std::int64_t{buffer.timestamp.tv_usec} * 1'000;
-  return monotonic_ns();
+  const std::int64_t now = monotonic_ns();
+  const timeval& t = buffer.timestamp;
+  if ((buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) != V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC || t.tv_sec < 0 ||
+      t.tv_sec > now / 1'000'000'000 || t.tv_usec < 0 || t.tv_usec >= 1'000'000)
+    return now;
+  const std::int64_t driver = std::int64_t{t.tv_sec} * 1'000'000'000 + std::int64_t{t.tv_usec} * 1'000;
+  return driver <= now ? driver : now;
 }
 
 int milliseconds_until(std::chrono::steady_clock::time_point deadline) {

@@ -358,6 +358,7 @@ void FakeV4l2Device::complete(Buffer& buffer, std::uint32_t bytes_used, std::uin
   if (!config_.monotonic_timestamps) now = {1'000'000'000 + now.tv_sec, now.tv_nsec};
   buffer.timestamp = {now.tv_sec, now.tv_nsec / 1000};
   last_timestamp_ns_ = std::int64_t{now.tv_sec} * 1'000'000'000 + std::int64_t{now.tv_nsec / 1000} * 1000;
+  if (config_.broken_timestamp) buffer.timestamp = *config_.broken_timestamp;
   buffer.bytes_used = bytes_used;
   buffer.flags =
       flags | (config_.monotonic_timestamps ? V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC : V4L2_BUF_FLAG_TIMESTAMP_UNKNOWN);

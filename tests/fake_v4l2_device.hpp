@@ -17,6 +17,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,9 @@ class FakeV4l2Device final : public SystemCalls {
     std::vector<unsigned> frame_rates = {30, 15};  // the first is the power-on rate
     unsigned max_buffers = 8;
     bool monotonic_timestamps = true;
+    /// A broken driver: every buffer carries this timestamp (flagged monotonic) instead of
+    /// the capture time.
+    std::optional<timeval> broken_timestamp;
   };
 
   struct Event {

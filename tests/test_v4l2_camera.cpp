@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 
 #include <chrono>
+#include <limits>
 #include <ostream>
 #include <string>
 #include <thread>
@@ -386,9 +387,9 @@ TEST(V4l2Buffers, MonotonicDriverTimestampsAreUsed) {
   EXPECT_GE(frame.media_time_s, 0.019);
 }
 
-TEST(V4l2Buffers, OtherTimestampsAreReplacedByTheDequeueTime) {
-  FakeV4l2Device::Config config;
-  config.monotonic_timestamps = false;
+/// Grabs one frame from a device made with `config` and checks that it is stamped with the
+/// dequeue time (between the times read before and after the grab), not the driver's.
+void expect_dequeue_time(const FakeV4l2Device::Config& config) {
   FakeV4l2Device device(config);
   V4l2Camera camera(options_for(config), device);
   Frame frame;
@@ -396,9 +397,30 @@ TEST(V4l2Buffers, OtherTimestampsAreReplacedByTheDequeueTime) {
   const std::int64_t before = monotonic_ns();
   ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
   const std::int64_t after = monotonic_ns();
-  EXPECT_NE(frame.capture_time_ns, device.last_timestamp_ns());
   EXPECT_GE(frame.capture_time_ns, before);
   EXPECT_LE(frame.capture_time_ns, after);
+  EXPECT_EQ(frame.media_time_s, 0.0);
+}
+
+TEST(V4l2Buffers, OtherTimestampsAreReplacedByTheDequeueTime) {
+  FakeV4l2Device::Config config;
+  config.monotonic_timestamps = false;
+  expect_dequeue_time(config);
+}
+
+// Found by fuzz_v4l2: seconds of INT64_MIN overflowed the conversion to nanoseconds. A
+// timestamp that cannot be a past CLOCK_MONOTONIC time gives way to the dequeue time.
+TEST(V4l2Buffers, ImpossibleMonotonicTimestampsAreReplacedByTheDequeueTime) {
+  constexpr std::int64_t kMin = std::numeric_limits<std::int64_t>::min();
+  constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
+  const timeval broken[] = {{kMin, 0}, {kMax, 999'999}, {-1, 0}, {0, -1}, {0, 1'000'000}, {kMin, kMin},
+                            {monotonic_ns() / 1'000'000'000 + 3600, 0}};
+  for (const timeval& timestamp : broken) {
+    SCOPED_TRACE(std::to_string(timestamp.tv_sec) + " s " + std::to_string(timestamp.tv_usec) + " us");
+    FakeV4l2Device::Config config;
+    config.broken_timestamp = timestamp;
+    expect_dequeue_time(config);
+  }
 }
 
 // ---- disconnects and lifetime ------------------------------------------------------------
