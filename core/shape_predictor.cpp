@@ -10,6 +10,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -26,22 +27,96 @@ struct DlibFields {
   std::vector<std::vector<dlib::vector<float, 2>>> deltas;
 };
 
-// The order of dlib's deserialize(shape_predictor&, istream&) (shape_predictor.h).
+/// dlib's serialisation of a shape predictor, decoded with dlib's own number decoders but
+/// with every count checked before it is used: an element takes at least one byte, so a
+/// count beyond the bytes left in the stream is a corrupt file, and vectors grow only with
+/// the elements actually read. dlib's deserialize(std::vector&) and deserialize(matrix&)
+/// would first allocate whatever a corrupt count says (gigabytes), then fail.
+class DlibReader {
+ public:
+  /// `in` must be seekable (a file or a string): its size bounds every count.
+  explicit DlibReader(std::istream& in) : in_(in) {
+    const std::istream::pos_type start = in.tellg();
+    in.seekg(0, std::ios::end);
+    end_ = in.tellg();
+    in.seekg(start);
+    if (start == std::istream::pos_type(-1) || end_ == std::istream::pos_type(-1) || !in)
+      throw ShapePredictorFormatError("cannot tell the size of the input");
+  }
+
+  template <class T>
+  void number(T& value) {
+    dlib::deserialize(value, in_);
+  }
+
+  /// std::vector<T>: its count, then each element read by `element(T&)`.
+  template <class T, class ReadElement>
+  void vector(std::vector<T>& out, const char* what, ReadElement element) {
+    unsigned long count = 0;
+    number(count);
+    check_count(count, what);
+    out.clear();
+    for (unsigned long i = 0; i < count; ++i) element(out.emplace_back());
+  }
+
+  /// dlib::matrix<float, 0, 1>: rows and columns (both negated by newer dlib), then the values.
+  void column(dlib::matrix<float, 0, 1>& out, const char* what) {
+    long rows = 0, columns = 0;
+    number(rows);
+    number(columns);
+    if (columns == -1) rows = rows == std::numeric_limits<long>::min() ? -1 : -rows;
+    if ((columns != 1 && columns != -1) || rows < 0)
+      throw ShapePredictorFormatError(std::string(what) + " is not a column of values");
+    check_count(static_cast<unsigned long>(rows), what);
+    out.set_size(rows);
+    for (long i = 0; i < rows; ++i) number(out(i));
+  }
+
+ private:
+  void check_count(unsigned long count, const char* what) {
+    const std::istream::pos_type at = in_.tellg();
+    const auto left = static_cast<unsigned long>(end_ - at);
+    if (count > left)
+      throw ShapePredictorFormatError(std::string(what) + ": a count of " + std::to_string(count) + " at byte " +
+                                      std::to_string(static_cast<long long>(at)) + " with only " +
+                                      std::to_string(left) + " bytes left");
+  }
+
+  std::istream& in_;
+  std::istream::pos_type end_;
+};
+
+// The order of dlib's deserialize(shape_predictor&, istream&) (shape_predictor.h) and of the
+// deserialize functions it calls for its members.
 DlibFields read_fields(std::istream& in) {
   DlibFields f;
   try {
+    DlibReader read(in);
     int version = 0;
-    dlib::deserialize(version, in);
+    read.number(version);
     if (version != 1)
       throw ShapePredictorFormatError("not a dlib shape predictor (version " + std::to_string(version) + ")");
-    dlib::deserialize(f.initial_shape, in);
-    dlib::deserialize(f.forests, in);
-    dlib::deserialize(f.anchor_idx, in);
-    dlib::deserialize(f.deltas, in);
-  } catch (const ShapePredictorFormatError&) {
-    throw;
-  } catch (const std::exception& e) {
-    // dlib::serialization_error, or bad_alloc/length_error from a garbage vector size.
+    read.column(f.initial_shape, "initial shape");
+    read.vector(f.forests, "cascades", [&](std::vector<dlib::impl::regression_tree>& forest) {
+      read.vector(forest, "trees", [&](dlib::impl::regression_tree& tree) {
+        read.vector(tree.splits, "splits", [&](dlib::impl::split_feature& split) {
+          read.number(split.idx1);
+          read.number(split.idx2);
+          read.number(split.thresh);
+        });
+        read.vector(tree.leaf_values, "leaves", [&](dlib::matrix<float, 0, 1>& leaf) { read.column(leaf, "leaf"); });
+      });
+    });
+    read.vector(f.anchor_idx, "cascades", [&](std::vector<unsigned long>& anchors) {
+      read.vector(anchors, "anchors", [&](unsigned long& anchor) { read.number(anchor); });
+    });
+    read.vector(f.deltas, "cascades", [&](std::vector<dlib::vector<float, 2>>& deltas) {
+      read.vector(deltas, "feature pixels", [&](dlib::vector<float, 2>& delta) {
+        read.number(delta.x());
+        read.number(delta.y());
+      });
+    });
+  } catch (const dlib::serialization_error& e) {
     throw ShapePredictorFormatError(std::string("not a dlib shape predictor: ") + e.what());
   }
   return f;

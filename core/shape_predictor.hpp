@@ -69,11 +69,13 @@ class ShapePredictorFormatError : public std::runtime_error {
 class ShapePredictorData {
  public:
   /// Reads the fields of a serialized dlib::shape_predictor in the order dlib's
-  /// deserialize(shape_predictor&, istream&) reads them, with dlib's own deserializers. A .dat
-  /// holds no detector: `detector` makes the one the predictor was trained with (dlib's
-  /// 68-point models: FaceDetector::builtin), called once the predictor has been read. Throws
-  /// ShapePredictorFormatError when the stream is not a shape predictor, its trees are not
-  /// complete binary trees of one depth, or it does not predict 68 landmarks.
+  /// deserialize(shape_predictor&, istream&) reads them, with dlib's number decoders; every
+  /// count is checked against the bytes left before anything is allocated, so `in` must be
+  /// seekable (a file or a string). A .dat holds no detector: `detector` makes the one the
+  /// predictor was trained with (dlib's 68-point models: FaceDetector::builtin), called once
+  /// the predictor has been read. Throws ShapePredictorFormatError when the stream is not a
+  /// shape predictor (a count it cannot hold included), its trees are not complete binary
+  /// trees of one depth, or it does not predict 68 landmarks.
   static ShapePredictorData read_dlib(std::istream& in, FaceDetector (*detector)());
 
   /// Whether `bytes` start like an .lpp file (its magic).

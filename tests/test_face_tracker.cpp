@@ -231,6 +231,55 @@ TEST(ShapePredictor, DamagedCompactFilesAreErrors) {
   std::filesystem::remove_all(dir);
 }
 
+// Found by fuzz_predictor: a corrupt count made the reader allocate gigabytes before it
+// failed (dlib's deserialize sizes a vector or matrix to whatever the count says). A count
+// beyond the bytes left is an error naming it, before anything is allocated.
+TEST(ShapePredictor, CountsBeyondTheBytesLeftAreAnErrorNamingThem) {
+  constexpr unsigned long kHuge = 1ul << 40;
+  dlib::matrix<float, 0, 1> mean_shape(2 * kNumLandmarks);
+  mean_shape = 0.5;
+  const auto error_of = [](const std::string& bytes) -> std::string {
+    std::istringstream in(bytes);
+    try {
+      ShapePredictorData::read_dlib(in, &FaceDetector::builtin);  // called only when the read succeeds
+    } catch (const ShapePredictorFormatError& e) {
+      return e.what();
+    }
+    return "(read)";
+  };
+  std::ostringstream cascades;  // the version, the mean shape, then 2^40 cascades
+  dlib::serialize(1, cascades);
+  dlib::serialize(mean_shape, cascades);
+  dlib::serialize(kHuge, cascades);
+  EXPECT_NE(error_of(cascades.str()).find("cascades: a count of 1099511627776 at byte"), std::string::npos)
+      << error_of(cascades.str());
+
+  std::ostringstream shape;  // a mean shape of 2^40 values (newer dlib negates the sizes)
+  dlib::serialize(1, shape);
+  dlib::serialize(-static_cast<long>(kHuge), shape);
+  dlib::serialize(-1l, shape);
+  EXPECT_NE(error_of(shape.str()).find("initial shape: a count of 1099511627776"), std::string::npos)
+      << error_of(shape.str());
+
+  std::ostringstream leaf;  // one cascade of one tree with one split, whose leaf claims 2^40 values
+  dlib::serialize(1, leaf);
+  dlib::serialize(mean_shape, leaf);
+  for (const unsigned long count : {1ul, 1ul, 1ul}) dlib::serialize(count, leaf);  // cascades, trees, splits
+  dlib::serialize(0ul, leaf);
+  dlib::serialize(0ul, leaf);
+  dlib::serialize(0.f, leaf);
+  dlib::serialize(1ul, leaf);  // leaves
+  dlib::serialize(static_cast<long>(kHuge), leaf);
+  dlib::serialize(1l, leaf);
+  EXPECT_NE(error_of(leaf.str()).find("leaf: a count of 1099511627776"), std::string::npos) << error_of(leaf.str());
+
+  std::ostringstream wide;  // a leaf of 2 columns is not dlib's matrix<float, 0, 1>
+  dlib::serialize(1, wide);
+  dlib::serialize(2l, wide);
+  dlib::serialize(2l, wide);
+  EXPECT_NE(error_of(wide.str()).find("initial shape is not a column"), std::string::npos) << error_of(wide.str());
+}
+
 TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
   const auto dir = std::filesystem::temp_directory_path() / "lipdrive_test_predictor";
   std::filesystem::create_directories(dir);
