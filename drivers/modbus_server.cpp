@@ -67,11 +67,17 @@ std::optional<Write> decode_write(const std::uint8_t* pdu, std::span<const std::
   }
 }
 
-void set_timeouts(modbus_t* context) {
+void set_timeouts(modbus_t* context, ModbusEndpoint::Transport transport) {
   constexpr std::uint32_t us = ModbusServer::kByteTimeoutMs * 1000;
   modbus_set_byte_timeout(context, 0, us);
   // Requests are only read once poll() saw data, so this only guards against a spurious wake-up.
   modbus_set_indication_timeout(context, 0, us);
+  // A server never waits for a response; libmodbus uses this timeout only to sleep before it
+  // flushes the line after a request with an illegal count (modbus_reply), and that sleep
+  // holds up every client of the server thread (500 ms by default). A TCP request was read
+  // whole by its length field, so there is nothing to wait for (1 us, the least libmodbus
+  // takes); the rest of a bad serial frame arrives within the byte timeout.
+  modbus_set_response_timeout(context, 0, transport == ModbusEndpoint::Transport::kTcp ? 1 : us);
 }
 
 }  // namespace
@@ -88,7 +94,7 @@ ModbusServer::ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int 
       query_(MODBUS_TCP_MAX_ADU_LENGTH) {
   if (!mapping_ || wake_fd_.get() == -1)
     throw std::runtime_error(fmt::format("modbus server {}: {}", describe(), std::strerror(errno)));
-  set_timeouts(context_.get());
+  set_timeouts(context_.get(), endpoint.transport);
   if (endpoint.transport == ModbusEndpoint::Transport::kTcp) {
     listen_fd_ = UniqueFd(modbus_tcp_listen(context_.get(), max_clients));
     sockaddr_in bound{};
