@@ -277,10 +277,9 @@ Recovery oracle_recovery(const MorphableModel& model, double eye_span_px) {
       if (d < best_distance) best_distance = d, best = q;
     }
     ++r.poses;
-    const auto miss = [&] {
-      ++r.misses_by_intensity[static_cast<std::size_t>(
-          std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9))];
-    };
+    const auto intensity_bin =
+        static_cast<std::size_t>(std::clamp(static_cast<int>(std::lround(intensity * 10)) - 1, 0, 9));
+    const auto miss = [&] { ++r.misses_by_intensity[intensity_bin]; };
     if (model.pose_names[best] == "neutral") {
       miss();
       continue;
