@@ -18,6 +18,26 @@ long allocation_count() { return g_count.load(); }
 void count_allocations_on_this_thread(bool on) { t_counting = on; }
 }  // namespace lipdrive::test
 
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define LIPDRIVE_SANITIZER_ALLOCATOR 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define LIPDRIVE_SANITIZER_ALLOCATOR 1
+#endif
+#endif
+
+#ifdef LIPDRIVE_SANITIZER_ALLOCATOR
+// Under AddressSanitizer or ThreadSanitizer (scripts/sanitize.sh) the sanitizer's allocator
+// is malloc and must stay so; its allocation hook, called for every allocation it makes
+// (malloc family and operator new alike), counts instead.
+#include <sanitizer/allocator_interface.h>
+
+namespace {
+void on_allocation(const volatile void*, std::size_t) { count(); }
+void on_free(const volatile void*) {}
+[[maybe_unused]] const int g_hooks_installed = __sanitizer_install_malloc_and_free_hooks(on_allocation, on_free);
+}  // namespace
+#else
 // glibc's real allocator, which its public malloc family are aliases of.
 extern "C" {
 void* __libc_malloc(std::size_t);
@@ -47,3 +67,4 @@ void* aligned_alloc(std::size_t alignment, std::size_t size) {
   return __libc_memalign(alignment, size);
 }
 }
+#endif
