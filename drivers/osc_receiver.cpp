@@ -2,24 +2,32 @@
 
 #include <lo/lo.h>
 
+#include <cstdint>
 #include <cstring>
 #include <memory>
 
 namespace lipdrive {
 namespace {
 
-const lo_arg* argument(void* const* argv, int i) { return static_cast<const lo_arg*>(argv[i]); }
+/// Argument `i` as a T. liblo's argument pointers point into the message, where OSC aligns
+/// arguments to 4 bytes only: reading an 8-byte lo_arg through them is a misaligned access
+/// (UndefinedBehaviorSanitizer found it), so the bytes are copied out.
+template <class T>
+T argument(void* const* argv, int i) {
+  T value;
+  std::memcpy(&value, argv[i], sizeof value);
+  return value;
+}
 
 }  // namespace
 
 std::optional<double> OscMessage::number(int i) const {
   if (i < 0 || i >= size()) return std::nullopt;
-  const lo_arg* arg = argument(argv_, i);
   switch (types_[static_cast<std::size_t>(i)]) {
-    case LO_INT32: return arg->i;
-    case LO_INT64: return static_cast<double>(arg->h);
-    case LO_FLOAT: return arg->f;
-    case LO_DOUBLE: return arg->d;
+    case LO_INT32: return argument<std::int32_t>(argv_, i);
+    case LO_INT64: return static_cast<double>(argument<std::int64_t>(argv_, i));
+    case LO_FLOAT: return argument<float>(argv_, i);
+    case LO_DOUBLE: return argument<double>(argv_, i);
     case LO_TRUE: return 1.0;
     case LO_FALSE: return 0.0;
     default: return std::nullopt;
@@ -30,7 +38,7 @@ std::optional<std::string_view> OscMessage::string(int i) const {
   if (i < 0 || i >= size()) return std::nullopt;
   const char type = types_[static_cast<std::size_t>(i)];
   if (type != LO_STRING && type != LO_SYMBOL) return std::nullopt;
-  return std::string_view(&argument(argv_, i)->s);
+  return std::string_view(static_cast<const char*>(argv_[i]));
 }
 
 OscReceiver::OscReceiver(const std::string& host, int port)

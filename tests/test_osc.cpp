@@ -15,6 +15,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -244,6 +245,30 @@ TEST(OscReceiver, ParsesMessagesAndRefusesBundles) {
   EXPECT_EQ(seen, (std::vector<std::string>{"/RecordStart", "/lipdrive/output_enable"}));
   EXPECT_EQ(take, 12);
   EXPECT_EQ(enable, 0);
+}
+
+// OSC aligns arguments to 4 bytes: after a 4-byte string the 64-bit ones sit 4 bytes off
+// an 8-byte boundary. Reading them through liblo's lo_arg union was a misaligned access that
+// UndefinedBehaviorSanitizer reported (from OscControl's /Take in the daemon tests); this
+// test fails in the sanitizer lane (scripts/sanitize.sh asan) if it comes back.
+TEST(OscReceiver, ReadsArgumentsAtAnyFourByteOffset) {
+  OscReceiver receiver("127.0.0.1", 0);
+  const std::string port = std::to_string(receiver.port());
+  lo_address to = lo_address_new("127.0.0.1", port.c_str());
+  ASSERT_GT(lo_send(to, "/lipdrive/test", "shdif", "abc", std::int64_t{1} << 40, 2.5, 7, 0.25f), 0);
+  lo_address_free(to);
+  bool handled = false;
+  EXPECT_EQ(receiver.receive(1000ms,
+                             [&](const OscMessage& m) {
+                               handled = true;
+                               EXPECT_EQ(m.string(0), "abc");
+                               EXPECT_EQ(m.number(1), static_cast<double>(std::int64_t{1} << 40));
+                               EXPECT_EQ(m.number(2), 2.5);
+                               EXPECT_EQ(m.number(3), 7);
+                               EXPECT_EQ(m.number(4), 0.25);
+                             }),
+            OscReceiver::Received::kMessage);
+  EXPECT_TRUE(handled);
 }
 
 TEST(OscReceiver, ReportsMalformedDatagrams) {
