@@ -20,6 +20,9 @@ install(FILES ${LIPDRIVE_PACKAGING_DIR}/lipdrive.1.gz DESTINATION ${CMAKE_INSTAL
 install(FILES ${LIPDRIVE_PACKAGING_DIR}/changelog.gz packaging/copyright
         DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/lipdrive)
 
+# cpack packages what is built: it does not first build every target (tests included), which a
+# partial build would otherwise wait for inside test_package.
+set(CMAKE_SKIP_INSTALL_ALL_DEPENDENCY TRUE)
 set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME lipdrive)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})

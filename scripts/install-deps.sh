@@ -12,7 +12,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   socat ffmpeg systemd clang-format
   libola-dev ola liblo-dev liblo-tools libltc-dev
-  lintian
+  lintian chromium chromium-driver
   libasound2-dev libaubio-dev libavformat-dev libavcodec-dev libswresample-dev libavutil-dev
 )
 

@@ -15,6 +15,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 
@@ -41,6 +42,15 @@ inline std::string sim_camera_at_60_fps() {
   return fmt::format(
       "[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\nreal_time = true\nloop = true\nreplay_fps = 60\n",
       kModel.string(), kClip.string());
+}
+
+/// One [[channels]] table per signal, each channel named after its signal; more keys of the
+/// last one may follow.
+inline std::string channels_toml(std::initializer_list<std::string_view> signals) {
+  std::string toml;
+  for (const std::string_view signal : signals)
+    toml += fmt::format("[[channels]]\nname = \"{}\"\nsignal = \"{}\"\n", signal, signal);
+  return toml;
 }
 
 }  // namespace lipdrive::test

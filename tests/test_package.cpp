@@ -240,13 +240,17 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   EXPECT_TRUE(fs::is_regular_file(root.string() + fs::read_symlink(wants).string())) << fs::read_symlink(wants);
 
   // The installed binary finds its models and clip beside it and runs the installed file: as
-  // it is (check-config), and with a free Modbus port (the only change) for 30 frames.
+  // it is (check-config), and with free Modbus and monitor ports (the only change) for 30 frames.
   const CommandRun check = run_command(fmt::format("{} check-config {}", shell_quote(binary), shell_quote(config)));
   EXPECT_EQ(check.exit_code, 0) << check.output;
   std::string text = read_file(config);
   const std::string port = "port = 1502";
   ASSERT_NE(text.find(port), std::string::npos) << "the reference Modbus server";
   text.replace(text.find(port), port.size(), fmt::format("port = {}", lipdrive::test::free_port()));
+  const std::string monitor_port = "port = 8480";
+  ASSERT_NE(text.find(monitor_port), std::string::npos) << "the reference monitor page";
+  const int free_monitor_port = lipdrive::test::free_port();
+  text.replace(text.find(monitor_port), monitor_port.size(), fmt::format("port = {}", free_monitor_port));
   const fs::path run_config = root / "run.toml";
   std::ofstream(run_config) << text;
   const CommandRun run =
@@ -257,6 +261,7 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   EXPECT_THAT(run.output, HasSubstr(root.string() + "/usr/share/lipdrive/models/default.lpm")) << run.output;
   EXPECT_THAT(run.output, HasSubstr("predictor " + compact_predictor.string())) << run.output;
   EXPECT_THAT(run.output, HasSubstr(root.string() + "/usr/share/lipdrive/talking_face.avi")) << run.output;
+  EXPECT_THAT(run.output, HasSubstr(fmt::format("monitor: http://127.0.0.1:{}/", free_monitor_port))) << run.output;
 
   // An upgrade keeps an administrator's disable and a changed configuration.
   const CommandRun disable =

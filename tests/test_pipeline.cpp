@@ -12,6 +12,7 @@
 #include "firmware_app/daemon/take_recorder.hpp"
 #include "firmware_app/tables/measures_csv.hpp"
 #include "fixture_paths.hpp"
+#include "pipeline_parts.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -42,8 +43,10 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 
+using test::AllocationWatch;
 using test::kClip;
 using test::kModel;
+using test::make_processor;
 
 // ---------------------------------------------------------------- hand-over structures
 
@@ -157,11 +160,6 @@ TEST(LatencyHistogram, QuantilesOfKnownLatencies) {
 
 // ---------------------------------------------------------------- the pipeline in-process
 
-std::unique_ptr<FrameProcessor> make_processor() {
-  static const MorphableModel model = load_model_file(kModel);
-  return std::make_unique<FrameProcessor>(model, kDefaultLandmarkSet, FitSettings{}, test::shared_predictor());
-}
-
 SimulatedCameraOptions clip_options() {
   SimulatedCameraOptions options;
   options.input = kClip;
@@ -228,15 +226,6 @@ TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
 }
 
 /// Starts counting the processing thread's allocations once the tracker is warm.
-class AllocationWatch : public ResultSink {
- public:
-  void push(const FrameResult&) override {
-    if (++frames == kWarmUp) test::count_allocations_on_this_thread(true);
-  }
-  static constexpr int kWarmUp = 30;
-  std::atomic<int> frames{0};
-};
-
 TEST_F(PipelineTest, ProcessingAllocatesNothingPerFrame) {
   DriveControl control;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{}, control);

@@ -9,6 +9,7 @@
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/daemon/daemon.hpp"
+#include "firmware_app/monitor/monitor.hpp"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -42,6 +43,8 @@ int run_daemon(RunOptions options) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   options.daemon.watchdog_interval = watchdog_interval();
+  // One control token for the process, so that the monitor's link stays valid across reloads.
+  options.daemon.monitor_token = new_control_token();
   Config config = load_config(options.config);
   spdlog::set_level(config.log_level);
   // The predictor and the model, loaded once for the process and shared by every reload.

@@ -10,6 +10,7 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdint>
 #include <initializer_list>
 #include <span>
@@ -499,6 +500,24 @@ void read_osc_control(Section control, Config& config) {
   control.reject_unknown_keys();
 }
 
+void read_monitor(Section monitor, Config& config) {
+  Config::Monitor& m = config.monitor;
+  m.enabled = monitor.boolean("enabled", m.enabled);
+  // Not resolved here: an address that cannot be listened on leaves the daemon running without
+  // the page (Monitor::start logs why).
+  m.address = monitor.string("address", m.address);
+  m.port = monitor.integer("port", m.port, 1, 65535);
+  m.token = monitor.string("token", m.token);
+  if (!m.token.empty() && (m.token.size() < 16 || !std::ranges::all_of(m.token, [](char c) {
+                             return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+                           })))
+    monitor.fail("token", "must be at least 16 letters, digits, '-', '_' or '.' (or \"\" for a new one at start)");
+  m.preview_fps = monitor.integer("preview_fps", m.preview_fps, 1, 30);
+  m.preview_size = monitor.integer("preview_size", m.preview_size, 64, 4096);
+  m.max_clients = monitor.integer("max_clients", m.max_clients, 1, 64);
+  monitor.reject_unknown_keys();
+}
+
 void read_outputs(Section outputs, Config& config) {
   for (Section& server : outputs.tables("modbus_server")) {
     ModbusServerOptions options;
@@ -582,6 +601,7 @@ Config load_config(const fs::path& file) {
   read_channels(top.tables("channels"), config);
   read_outputs(top.table("outputs"), config);
   read_osc_control(top.table("osc_control"), config);
+  read_monitor(top.table("monitor"), config);
   read_timecode(top.table("timecode"), config);
   top.reject_unknown_keys();
   return config;

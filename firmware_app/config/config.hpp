@@ -165,6 +165,17 @@ struct Config {
     int port = 8000;
   } osc_control;
 
+  /// [monitor]: the operator's page (docs/monitor.md).
+  struct Monitor {
+    bool enabled = false;
+    std::string address = "127.0.0.1";  // the interface listened on; "0.0.0.0" for every one
+    int port = 8480;
+    std::string token;       // the control token; "" = a new one at start, logged
+    int preview_fps = 10;    // previews a second at most
+    int preview_size = 640;  // a preview's width and height at most, pixels (the frame is decimated to fit)
+    int max_clients = 4;     // connections served at once (as many more wait; beyond: 503)
+  } monitor;
+
   struct Outputs {
     std::vector<ModbusServerOptions> modbus_servers;
     std::vector<ModbusClientOptions> modbus_clients;

@@ -2,6 +2,7 @@
 
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/monitor/monitor.hpp"
 #include "firmware_app/outputs/make_outputs.hpp"
 
 #include <fmt/format.h>
@@ -76,11 +77,37 @@ Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const D
     }
     spdlog::info("{}", osc_control_->describe());
   }
+  if (config_.monitor.enabled) {
+    preview_ = std::make_unique<PreviewFeed>(config_.monitor.preview_fps, config_.monitor.preview_size);
+    pipeline_->set_preview(*preview_);
+  }
   if (options.record || config_.recording.start) recorder_->start(take_file_name(config_.recording.dir));
   pipeline_->start();
   spdlog::info("running: {}, model {}, landmark set {}, predictor {}", pipeline_->describe_source(),
                config_.model.file.string(), landmark_set_name(config_.model.landmark_set),
                config_.tracker.predictor.string());
+  if (config_.monitor.enabled) start_monitor(options.monitor_token, settings.model_mismatch);
+}
+
+Daemon::~Daemon() = default;
+
+void Daemon::start_monitor(const std::string& fallback_token, bool model_mismatch) {
+  const Config::Monitor& settings = config_.monitor;
+  std::vector<const Output*> outputs;
+  for (const auto& output : outputs_) outputs.push_back(output.get());
+  const std::string token = !settings.token.empty()   ? settings.token
+                            : !fallback_token.empty() ? fallback_token
+                                                      : new_control_token();
+  monitor_ = std::make_unique<Monitor>(settings,
+                                       MonitorSources{*pipeline_, control_, *preview_, std::move(outputs),
+                                                      config_.channels, config_.performer.name, model_mismatch},
+                                       token);
+  if (!monitor_->start()) {
+    monitor_.reset();
+    return;
+  }
+  // The operator opens this link; a token from the configuration is not repeated in the log.
+  if (settings.token.empty()) spdlog::info("monitor: control token {}: {}#token={}", token, monitor_->url(), token);
 }
 
 void Daemon::poll() {

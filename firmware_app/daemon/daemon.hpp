@@ -1,10 +1,11 @@
 // The daemon `lipdrive run` holds: everything one configuration describes (the pipeline with
 // its cameras, the outputs, the take recorder, the performer's profile), built and started
-// together, replaced as a whole when the configuration is reloaded.
+// together, replaced as a whole when the configuration is reloaded; and the monitor page.
 //
 // Thread model: the main thread makes every call. Every part is declared after what its
-// threads use, so the members' own destruction order is the safe one: the pipeline's threads
-// are joined first (they use the outputs, the recorder and the drive control), then the outputs
+// threads use, so the members' own destruction order is the safe one: the monitor's threads are
+// joined first (they read the pipeline, the outputs and the preview feed, and write the drive
+// control), then the pipeline's (they use the feed, the outputs, the recorder and the drive control), then the outputs
 // and their threads go (the Modbus server writes the drive control), the recorder, and the
 // drive control last. A constructor that throws half-way unwinds in the same order.
 #pragma once
@@ -14,6 +15,7 @@
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/daemon/osc_control.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
+#include "firmware_app/daemon/preview_feed.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
 #include "firmware_app/daemon/timecode_source.hpp"
 #include "firmware_app/outputs/output.hpp"
@@ -22,6 +24,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace lipdrive {
@@ -31,7 +34,10 @@ struct DaemonOptions {
   bool record = false;                             // record a take from the start
   std::uint64_t max_frames = 0;                    // stop after this many processed frames; 0 = never
   std::chrono::microseconds watchdog_interval{0};  // sd_notify WATCHDOG=1 this often; 0 = off
+  std::string monitor_token;  // the monitor's control token when [monitor] names none; "" = a new one
 };
+
+class Monitor;
 
 class Daemon {
  public:
@@ -39,6 +45,7 @@ class Daemon {
   /// ConfigError or CommandError when something cannot be opened or loaded.
   /// `files` holds the model the performer's profile is checked against (it outlives the daemon).
   Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options, LoadedFiles& files);
+  ~Daemon();
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
 
@@ -55,11 +62,16 @@ class Daemon {
   /// Finishes the frame in hand, sends the neutral pose on every output, joins the threads.
   void stop() { pipeline_->stop(); }
 
+  PipelineStats stats() const { return pipeline_->stats(); }
   bool finished() const { return pipeline_->finished(); }
   bool failed() const { return pipeline_->failed(); }
   const Config& config() const { return config_; }
 
  private:
+  /// [monitor]: the page; a port or address that cannot be listened on is logged and the
+  /// daemon runs on without it.
+  void start_monitor(const std::string& fallback_token, bool model_mismatch);
+
   Config config_;
   PerformerProfile profile_;
   DriveControl
@@ -68,7 +80,9 @@ class Daemon {
   std::unique_ptr<TakeRecorder> recorder_;
   std::unique_ptr<OscControl> osc_control_;       // its thread writes control_
   std::vector<std::unique_ptr<Output>> outputs_;  // their threads use control_
+  std::unique_ptr<PreviewFeed> preview_;          // [monitor]: the processing thread writes it
   std::unique_ptr<Pipeline> pipeline_;            // its threads use all of the above
+  std::unique_ptr<Monitor> monitor_;              // [monitor]: its threads read all of the above
   std::uint32_t saved_profile_version_ = 0;
   // The status line: fps over the last interval.
   double last_status_seconds_ = 0;

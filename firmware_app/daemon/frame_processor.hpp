@@ -39,6 +39,10 @@ class FrameProcessor {
   /// The next frame is unrelated to the last (independent images): detect afresh.
   void forget() { tracker_.reset(); }
 
+  /// The last fit; its projected landmarks are the fitted model's in the last frame when that
+  /// frame was tracked.
+  const FitOutput& fit() const { return fit_; }
+
  private:
   Fitter fitter_;
   std::span<const int> set_;  // the landmarks the fit and the viseme pose match use

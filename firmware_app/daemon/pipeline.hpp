@@ -25,6 +25,7 @@
 #include "firmware_app/daemon/frame_result.hpp"
 #include "firmware_app/daemon/latency_histogram.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
+#include "firmware_app/daemon/preview_feed.hpp"
 #include "firmware_app/daemon/side_camera.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
 #include "firmware_app/daemon/timecode_source.hpp"
@@ -90,6 +91,8 @@ class Pipeline {
   void set_side_camera(std::unique_ptr<SideCamera> side) { side_ = std::move(side); }
   /// The timecode every frame is stamped with (processing thread).
   void set_timecode(const TimecodeSource& timecode) { timecode_ = &timecode; }
+  /// Where the monitor's previews go (processing thread, at the feed's own rate).
+  void set_preview(PreviewFeed& preview) { preview_ = &preview; }
   /// The performer profile the processing thread applies.
   void set_profile(const PerformerProfile& profile);
 
@@ -136,6 +139,7 @@ class Pipeline {
   std::vector<ResultSink*> sinks_;
   const TakeRecorder* recorder_ = nullptr;
   const TimecodeSource* timecode_ = nullptr;
+  PreviewFeed* preview_ = nullptr;
 
   Published<FrameResult> results_;
   Published<DriveFrame> drive_frames_;

@@ -1,0 +1,53 @@
+#include "firmware_app/monitor/preview_image.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+constexpr int kShift = 4;  // sub-pixel bits of the drawing coordinates
+const cv::Scalar kBoxColour(0, 220, 255), kLipColour(255, 0, 255), kLandmarkColour(0, 230, 0), kNoFaceColour(0, 0, 255);
+
+/// Frame pixels to fixed-point canvas pixels.
+cv::Point to_canvas(double x, double y, int decimation) {
+  const double scale = (1 << kShift) / static_cast<double>(decimation);
+  return {static_cast<int>(std::lround(x * scale)), static_cast<int>(std::lround(y * scale))};
+}
+
+/// The closed contour through landmarks first..last of `points`; none when one is unmapped.
+void draw_contour(cv::Mat& canvas, const Landmarks2D& points, int first, int last, int decimation) {
+  std::vector<cv::Point> contour;
+  for (int i = first; i <= last; ++i) {
+    if (!std::isfinite(points(0, i)) || !std::isfinite(points(1, i))) return;
+    contour.push_back(to_canvas(points(0, i), points(1, i), decimation));
+  }
+  cv::polylines(canvas, contour, true, kLipColour, 1, cv::LINE_AA, kShift);
+}
+
+}  // namespace
+
+std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality) {
+  cv::cvtColor(frame.image, canvas, cv::COLOR_GRAY2BGR);
+  const int k = frame.decimation;
+  if (frame.tracked) {
+    const Eigen::Vector2d low = frame.landmarks.rowwise().minCoeff(), high = frame.landmarks.rowwise().maxCoeff();
+    cv::rectangle(canvas, to_canvas(low.x(), low.y(), k), to_canvas(high.x(), high.y(), k), kBoxColour, 1, cv::LINE_AA,
+                  kShift);
+    draw_contour(canvas, frame.fitted, ibug::kMouthCornerRight, ibug::kInnerCornerRight - 1, k);  // outer lips 48-59
+    draw_contour(canvas, frame.fitted, ibug::kInnerCornerRight, kNumLandmarks - 1, k);            // inner lips 60-67
+    for (int i = 0; i < kNumLandmarks; ++i)
+      cv::circle(canvas, to_canvas(frame.landmarks(0, i), frame.landmarks(1, i), k), 2 << kShift, kLandmarkColour,
+                 cv::FILLED, cv::LINE_AA, kShift);
+  } else {
+    cv::putText(canvas, "no face", {8, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.7, kNoFaceColour, 2, cv::LINE_AA);
+  }
+  std::vector<unsigned char> bytes;
+  cv::imencode(".jpg", canvas, bytes, {cv::IMWRITE_JPEG_QUALITY, quality});
+  return {bytes.begin(), bytes.end()};
+}
+
+}  // namespace lipdrive
