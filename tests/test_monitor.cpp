@@ -30,6 +30,7 @@
 #include <arpa/inet.h>
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -99,9 +100,42 @@ TEST(PreviewFeed, DecimatesTheFrameToFitAndKeepsTheLandmarksInFramePixels) {
   EXPECT_EQ(preview->fitted(1, 67), 101);
 }
 
-// A preview on every frame (1000 a second asked), copied (640) or decimated (320), while a reader
-// takes them as the monitor's encoder does: nothing is allocated on the processing thread.
-class PreviewOnTheFramePath : public ::testing::TestWithParam<int> {};
+TEST(PreviewFeed, CarriesTheSideCamerasFrameAndProfileWhenThereIsOne) {
+  PreviewFeed feed(30, 320);
+  const cv::Mat front(480, 640, CV_8UC1, cv::Scalar(90));
+  cv::Mat side(240, 320, CV_8UC1);
+  for (int y = 0; y < side.rows; ++y)
+    for (int x = 0; x < side.cols; ++x) side.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>((x * 5 + y) % 253);
+  SideProfile profile;
+  profile.status = SideStatus::kNoLip;
+  profile.nose_tip = {200, 100};
+  feed.offer(front, 1, 1'000'000'000, false, no_landmarks(), no_landmarks(),
+             SideView{.gray = &side, .profile = profile, .connected = true});
+  const PreviewFrame* preview = feed.take(0ms);
+  ASSERT_NE(preview, nullptr);
+  ASSERT_TRUE(preview->side);
+  EXPECT_EQ(preview->side_decimation, 1) << "the side frame fits as it is";
+  EXPECT_EQ(cv::norm(preview->side_image, side, cv::NORM_L1), 0);
+  EXPECT_EQ(preview->side_profile.status, SideStatus::kNoLip);
+  EXPECT_EQ(preview->side_profile.nose_tip, cv::Point2f(200, 100));
+  EXPECT_TRUE(preview->side_connected);
+  // Without a side frame, the next preview says so.
+  feed.offer(front, 2, 2'000'000'000, false, no_landmarks(), no_landmarks());
+  preview = feed.take(0ms);
+  ASSERT_NE(preview, nullptr);
+  EXPECT_FALSE(preview->side);
+}
+
+// A preview on every frame (1000 a second asked), copied (640) or decimated (320), with and
+// without a side camera, while a reader takes them as the monitor's encoder does: nothing is
+// allocated on the processing thread.
+struct PreviewCase {
+  int size;
+  bool side;
+};
+void PrintTo(const PreviewCase& c, std::ostream* out) { *out << c.size << (c.side ? " with side camera" : ""); }
+
+class PreviewOnTheFramePath : public ::testing::TestWithParam<PreviewCase> {};
 
 TEST_P(PreviewOnTheFramePath, AllocatesNothingAndTheFittedLipsLieOnTheTrackedOnes) {
   LIPDRIVE_REQUIRE_BUILT(kClip);
@@ -110,18 +144,31 @@ TEST_P(PreviewOnTheFramePath, AllocatesNothingAndTheFittedLipsLieOnTheTrackedOne
   options.loop = true;
   DriveControl control;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), test::make_processor(), PipelineSettings{}, control);
-  PreviewFeed feed(1000, GetParam());
+  if (GetParam().side) {
+    const fs::path side_clip = fs::path(LIPDRIVE_FIXTURE_DIR) / "side_view.avi";
+    LIPDRIVE_REQUIRE_BUILT(side_clip);
+    SimulatedCameraOptions side = options;
+    side.input = side_clip;
+    pipeline.set_side_camera(
+        std::make_unique<SideCamera>(std::make_unique<SimulatedCamera>(side), SideProfileSettings{}, 10));
+  }
+  PreviewFeed feed(1000, GetParam().size);
   pipeline.set_preview(feed);
   test::AllocationWatch watch;
   pipeline.add_sink(watch);
   std::atomic<bool> stop{false};
-  int taken = 0, tracked = 0;
+  int taken = 0, tracked = 0, with_side = 0, side_profiles = 0;
   double worst_lip_gap_px = 0, worst_lip_gap = 0;
   std::thread reader([&] {
     while (!stop) {
       const PreviewFrame* preview = feed.take(20ms);
       if (!preview) continue;
       ++taken;
+      if (preview->side) {
+        ++with_side;
+        side_profiles += preview->side_profile.ok();
+        EXPECT_EQ(preview->side_image.cols, 640 / preview->side_decimation);
+      }
       if (!preview->tracked) continue;
       ++tracked;
       // The fitted model's lip landmarks against the tracked ones (48-67): mean distance over
@@ -147,6 +194,12 @@ TEST_P(PreviewOnTheFramePath, AllocatesNothingAndTheFittedLipsLieOnTheTrackedOne
   EXPECT_GE(feed.offered(), 150u);
   EXPECT_GT(taken, 20);
   EXPECT_GT(tracked, 20);
+  if (GetParam().side) {
+    EXPECT_GT(with_side, taken / 2) << "the side camera's frame rides along";
+    EXPECT_GT(side_profiles, with_side / 2) << "with its profile found";
+  } else {
+    EXPECT_EQ(with_side, 0);
+  }
   // On the lips: the mouth is about half the eye-corner distance wide, the fitted contour stays
   // within a tenth of that of the tracked points (a wrong scale or offset would be far off).
   EXPECT_LT(worst_lip_gap, 0.05) << worst_lip_gap_px << " px";
@@ -155,22 +208,26 @@ TEST_P(PreviewOnTheFramePath, AllocatesNothingAndTheFittedLipsLieOnTheTrackedOne
   std::printf("worst mean lip gap %.2f px, %.4f of the eye-corner distance\n", worst_lip_gap_px, worst_lip_gap);
 }
 
-INSTANTIATE_TEST_SUITE_P(Sizes, PreviewOnTheFramePath, ::testing::Values(640, 320));
+INSTANTIATE_TEST_SUITE_P(Sizes, PreviewOnTheFramePath,
+                         ::testing::Values(PreviewCase{640, false}, PreviewCase{320, false}, PreviewCase{640, true}));
 
 // ---------------------------------------------------------------- the daemon over HTTP
 
-/// A daemon configuration replaying the clip at 60 fps with the monitor on `port`.
-std::string monitor_config(const fs::path& dir, int port, const std::string& monitor_keys = "") {
+/// A daemon configuration replaying the clip at 60 fps with the monitor on `port`, and
+/// `tables` after [monitor].
+std::string monitor_config(const fs::path& dir, int port, const std::string& monitor_keys = "",
+                           const std::string& tables = "") {
   return test::sim_camera_at_60_fps() +
          fmt::format("[status]\nprint_interval_ms = 0\n[recording]\ndir = \"{}\"\n", (dir / "takes").string()) +
          test::channels_toml({"open", "width"}) + "neutral = 500\n" +
-         fmt::format("[monitor]\nenabled = true\nport = {}\n{}\n", port, monitor_keys);
+         fmt::format("[monitor]\nenabled = true\nport = {}\n{}\n", port, monitor_keys) + tables;
 }
 
 /// `lipdrive run` with the monitor on a free port, in a folder of its own.
 struct MonitoredDaemon {
-  explicit MonitoredDaemon(const std::string& monitor_keys = "")
-      : port(test::free_port()), process(written(dir.path(), port, monitor_keys), dir.path() / "stderr.txt") {}
+  explicit MonitoredDaemon(const std::string& monitor_keys = "", const std::string& tables = "")
+      : port(test::free_port()),
+        process(written(dir.path(), port, monitor_keys, tables), dir.path() / "stderr.txt") {}
   /// "monitor: http://..." in the log: it listens.
   bool listening() { return process.wait_for_log(fmt::format("monitor: http://127.0.0.1:{}/", port)); }
   /// SIGTERM, and a clean exit.
@@ -184,8 +241,8 @@ struct MonitoredDaemon {
   test::DaemonProcess process;
 
  private:
-  static fs::path written(const fs::path& dir, int port, const std::string& monitor_keys) {
-    std::ofstream(dir / "lipdrive.toml") << monitor_config(dir, port, monitor_keys);
+  static fs::path written(const fs::path& dir, int port, const std::string& monitor_keys, const std::string& tables) {
+    std::ofstream(dir / "lipdrive.toml") << monitor_config(dir, port, monitor_keys, tables);
     return dir / "lipdrive.toml";
   }
 };
@@ -253,6 +310,8 @@ TEST(MonitorHttp, ServesThePageTheStateThePreviewAndTheHistoryOnLoopback) {
   EXPECT_EQ(second["channels"][1]["neutral"].get<double>(), 500);
   ASSERT_EQ(second["outputs"].size(), 0u);
   EXPECT_THAT(second["camera"].get<std::string>(), HasSubstr("talking_face.avi"));
+  EXPECT_TRUE(second["side_camera"].is_null());
+  EXPECT_EQ(c.Get("/preview-side.jpg")->status, 404) << "no side camera, no side image";
 
   // The preview: a JPEG of the frame with its overlay, newer on every fetch.
   ASSERT_TRUE(wait_for(
@@ -303,6 +362,54 @@ TEST(MonitorHttp, ServesThePageTheStateThePreviewAndTheHistoryOnLoopback) {
   EXPECT_EQ(c.Get("/api/history?since=x")->status, 400);
   EXPECT_EQ(c.Get("/nothing-here")->status, 404);
 
+  daemon.stop();
+}
+
+/// Pixels of `image` (BGR) near `colour`.
+int pixels_of(const cv::Mat& image, const cv::Vec3b& colour) {
+  int n = 0;
+  for (auto it = image.begin<cv::Vec3b>(); it != image.end<cv::Vec3b>(); ++it)
+    n += std::abs((*it)[0] - colour[0]) < 50 && std::abs((*it)[1] - colour[1]) < 50 && std::abs((*it)[2] - colour[2]) < 50;
+  return n;
+}
+
+TEST(MonitorHttp, ShowsTheSideCamerasImageWithItsProfile) {
+  LIPDRIVE_REQUIRE_BUILT(kClip);
+  const fs::path side_clip = fs::path(LIPDRIVE_FIXTURE_DIR) / "side_view.avi";
+  LIPDRIVE_REQUIRE_BUILT(side_clip);
+  MonitoredDaemon daemon("",
+                         fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"\nreplay_fps = 60\n", side_clip.string()));
+  ASSERT_TRUE(daemon.listening()) << daemon.process.log();
+  auto c = client(daemon.port);
+  ASSERT_TRUE(wait_for([&] { return state(c)["frames"]["tracked"].get<int>() > 30; }, 60s)) << daemon.process.log();
+  const json s = fresh_state(c);
+  ASSERT_TRUE(s["side_camera"].is_object()) << s.dump();
+  EXPECT_THAT(s["side_camera"]["camera"].get<std::string>(), HasSubstr("side_view.avi"));
+  EXPECT_TRUE(s["side_camera"]["connected"].get<bool>());
+
+  // The side image, newer on every fetch, with the profile drawn on it: the nose in yellow, the
+  // upper lip in magenta (the clip's profile is found on nearly every frame).
+  const fs::path artifacts = fs::path(LIPDRIVE_BUILD_DIR) / "test_artifacts" / "monitor";
+  fs::create_directories(artifacts);
+  std::uint64_t last_sequence = 0;
+  int newer = 0, with_profile = 0;
+  for (int i = 0; i < 5; ++i) {
+    const httplib::Result r = c.Get("/preview-side.jpg");
+    ASSERT_TRUE(r);
+    ASSERT_EQ(r->status, 200) << r->body;
+    EXPECT_EQ(r->get_header_value("Content-Type"), "image/jpeg");
+    const std::uint64_t sequence = std::stoull(r->get_header_value("X-Frame-Sequence"));
+    newer += sequence > last_sequence;
+    last_sequence = sequence;
+    const cv::Mat image = cv::imdecode(std::vector<unsigned char>(r->body.begin(), r->body.end()), cv::IMREAD_COLOR);
+    ASSERT_EQ(image.size(), cv::Size(640, 480));
+    const int yellow = pixels_of(image, {0, 220, 255}), magenta = pixels_of(image, {255, 0, 255});
+    with_profile += yellow > 20 && magenta > 10;
+    if (i == 0) std::ofstream(artifacts / "side.jpg", std::ios::binary) << r->body;
+    std::this_thread::sleep_for(300ms);
+  }
+  EXPECT_EQ(newer, 5);
+  EXPECT_GE(with_profile, 3);
   daemon.stop();
 }
 

@@ -100,9 +100,9 @@ void Pipeline::process(const CapturedFrame& frame) {
   tracked_.fetch_add(result.tracked, std::memory_order_relaxed);
   results_.publish(result);
   for (ResultSink* sink : sinks_) sink->push(result);
-  if (preview_)
+  if (preview_ && preview_->due(frame.capture_time_ns))
     preview_->offer(frame.gray, frame.sequence, frame.capture_time_ns, result.tracked, measurement.landmarks,
-                    processor_->fit().projected);
+                    processor_->fit().projected, side_ ? side_->view() : SideView{});
   calibrate_step(result);
   const std::uint64_t processed = processed_.fetch_add(1, std::memory_order_relaxed) + 1;
   if (settings_.max_frames > 0 && processed >= settings_.max_frames) finished_.store(true, std::memory_order_release);

@@ -113,6 +113,8 @@ class Pipeline {
   /// the owner to save; lock-free.
   std::uint32_t recentred_profile(PerformerProfile& profile) const { return recentred_.read(profile); }
   const std::string& describe_source() const { return capture_.describe(); }
+  /// The side camera, or nullptr without one.
+  const SideCamera* side_camera() const { return side_.get(); }
 
   /// Commands to the drive (output enable, overrides, calibrate, record); any thread.
   DriveControl& control() { return control_; }

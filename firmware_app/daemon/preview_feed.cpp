@@ -27,15 +27,26 @@ void decimate(const cv::Mat& source, int k, cv::Mat& target) {
 PreviewFeed::PreviewFeed(double fps, int max_side)
     : period_ns_(static_cast<std::int64_t>(1e9 / fps)), max_side_(max_side) {}
 
+int PreviewFeed::decimation(const cv::Mat& frame) const {
+  return std::max((std::max(frame.cols, frame.rows) + max_side_ - 1) / max_side_, 1);
+}
+
 void PreviewFeed::offer(const cv::Mat& gray, std::uint64_t sequence, std::int64_t capture_time_ns, bool tracked,
-                        const Landmarks2D& landmarks, const Landmarks2D& fitted) {
-  if (capture_time_ns < next_ns_ || gray.empty()) return;
+                        const Landmarks2D& landmarks, const Landmarks2D& fitted, const SideView& side) {
+  if (!due(capture_time_ns) || gray.empty()) return;
   // A period after the last one was due, keeping the rate; a period from now after a pause.
   next_ns_ += period_ns_;
   if (next_ns_ <= capture_time_ns) next_ns_ = capture_time_ns + period_ns_;
   PreviewFrame& slot = frames_.back();
-  slot.decimation = std::max((std::max(gray.cols, gray.rows) + max_side_ - 1) / max_side_, 1);
+  slot.decimation = decimation(gray);
   decimate(gray, slot.decimation, slot.image);
+  slot.side = side.gray != nullptr && !side.gray->empty();
+  if (slot.side) {
+    slot.side_decimation = decimation(*side.gray);
+    decimate(*side.gray, slot.side_decimation, slot.side_image);
+    slot.side_profile = side.profile;
+    slot.side_connected = side.connected;
+  }
   slot.tracked = tracked;
   if (tracked) {
     slot.landmarks = landmarks;

@@ -45,8 +45,22 @@ std::optional<double> SideCamera::protrusion_near(std::int64_t front_time_ns, st
     return std::nullopt;
   }
   const SideMeasure measure = meter_.measure(frame->gray, *reference_);
+  profile_ = measure.profile;
+  profiled_ = frame;
+  profiled_sequence_ = frame->sequence;
   if (!measure.ok()) return std::nullopt;
   return measure.protrusion;
+}
+
+SideView SideCamera::view() {
+  if (const CapturedFrame* newer = capture_.take(std::chrono::nanoseconds(0))) current_ = newer;
+  if (!current_) return {};
+  if (profiled_ != current_ || profiled_sequence_ != current_->sequence) {
+    profile_ = meter_.find(current_->gray);
+    profiled_ = current_;
+    profiled_sequence_ = current_->sequence;
+  }
+  return {.gray = &current_->gray, .profile = profile_, .connected = connected()};
 }
 
 }  // namespace lipdrive

@@ -13,12 +13,21 @@
 #include "firmware_app/daemon/capture.hpp"
 
 #include <atomic>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace lipdrive {
+
+/// What the monitor's preview shows of the side camera: its newest frame and that frame's
+/// profile.
+struct SideView {
+  const cv::Mat* gray = nullptr;  // nullptr before the first side frame
+  SideProfile profile;            // in frame pixels; see profile.status for how far it got
+  bool connected = false;
+};
 
 class SideCamera {
  public:
@@ -40,6 +49,12 @@ class SideCamera {
     reference_.reset();
     neutral_.clear();
   }
+  /// Processing thread, a few times a second for the monitor's preview: the newest side frame
+  /// (taken without waiting) and its profile, found again only when the frame was not the one
+  /// just measured. The frame stays valid until the processing thread next calls this or
+  /// protrusion_near().
+  SideView view();
+
   bool connected() const { return capture_.delivering(); }
   const std::string& describe() const { return capture_.describe(); }
 
@@ -55,6 +70,9 @@ class SideCamera {
   std::vector<cv::Mat> neutral_;  // the frames the reference is being fixed on
   int neutral_frames_;
   const CapturedFrame* current_ = nullptr;
+  SideProfile profile_;                 // of the side frame measured last
+  const CapturedFrame* profiled_ = nullptr;  // that frame
+  std::uint64_t profiled_sequence_ = 0;
 };
 
 }  // namespace lipdrive

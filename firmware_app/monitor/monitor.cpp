@@ -221,24 +221,28 @@ void Monitor::add_routes() {
     response.set_header("Cache-Control", "no-store");
     response.set_content(history_json(since), "application/json");
   });
-  server_->Get("/preview.jpg", [this](const Request&, Response& response) {
-    std::shared_ptr<const std::string> jpeg;
-    std::uint64_t sequence = 0;
-    {
-      std::lock_guard lock(jpeg_mutex_);
-      jpeg = jpeg_;
-      sequence = jpeg_sequence_;
-    }
-    response.set_header("Cache-Control", "no-store");
-    if (!jpeg) {
-      response.status = 503;
-      response.set_header("Retry-After", "1");
-      response.set_content("no frame yet\n", "text/plain");
-      return;
-    }
-    response.set_header("X-Frame-Sequence", std::to_string(sequence));
-    response.set_content(*jpeg, "image/jpeg");
-  });
+  const auto serve = [](Jpeg& jpeg) {
+    return [&jpeg](const Request&, Response& response) {
+      std::shared_ptr<const std::string> bytes;
+      std::uint64_t sequence = 0;
+      {
+        std::lock_guard lock(jpeg.mutex);
+        bytes = jpeg.bytes;
+        sequence = jpeg.sequence;
+      }
+      response.set_header("Cache-Control", "no-store");
+      if (!bytes) {
+        response.status = 503;
+        response.set_header("Retry-After", "1");
+        response.set_content("no frame yet\n", "text/plain");
+        return;
+      }
+      response.set_header("X-Frame-Sequence", std::to_string(sequence));
+      response.set_content(*bytes, "image/jpeg");
+    };
+  };
+  server_->Get("/preview.jpg", serve(front_jpeg_));
+  if (sources_.pipeline.side_camera()) server_->Get("/preview-side.jpg", serve(side_jpeg_));
 
   // Commands: the token, then one atomic write to the drive control, as a Modbus register does.
   const auto command = [this](std::string what, std::function<void()> act) {
@@ -267,16 +271,21 @@ void Monitor::add_routes() {
 
 // ---------------------------------------------------------------- encoder thread
 
+void Monitor::Jpeg::publish(std::string jpeg, std::uint64_t frame_sequence) {
+  auto shared = std::make_shared<const std::string>(std::move(jpeg));
+  std::lock_guard lock(mutex);
+  bytes = std::move(shared);
+  sequence = frame_sequence;
+}
+
 void Monitor::encoder_loop() {
   cv::Mat canvas;
   std::int64_t next_sample_ns = monotonic_ns();
   while (!stop_.load(std::memory_order_relaxed)) {
     const std::int64_t wait_ns = std::max<std::int64_t>(next_sample_ns - monotonic_ns(), 0);
     if (const PreviewFrame* frame = sources_.preview.take(std::chrono::nanoseconds(wait_ns))) {
-      auto jpeg = std::make_shared<const std::string>(preview_jpeg(*frame, canvas, kJpegQuality));
-      std::lock_guard lock(jpeg_mutex_);
-      jpeg_ = std::move(jpeg);
-      jpeg_sequence_ = frame->sequence;
+      front_jpeg_.publish(preview_jpeg(*frame, canvas, kJpegQuality), frame->sequence);
+      if (frame->side) side_jpeg_.publish(side_preview_jpeg(*frame, canvas, kJpegQuality), frame->sequence);
       counters_.encoded.fetch_add(1, std::memory_order_relaxed);
     }
     const std::int64_t now = monotonic_ns();
@@ -328,6 +337,7 @@ std::string Monitor::state_json() {
   std::lock_guard lock(state_mutex_);
   if (!state_.empty() && now - state_time_ns_ < kStateMaxAgeNs) return state_;
   const Pipeline& pipeline = sources_.pipeline;
+  const SideCamera* side = pipeline.side_camera();
   const PipelineStats s = pipeline.stats();
   DriveFrame drive;
   pipeline.latest_drive(drive);
@@ -353,6 +363,8 @@ std::string Monitor::state_json() {
   nlohmann::json state = {
       {"time_s", seconds(now - start_ns_)},
       {"camera", pipeline.describe_source()},
+      {"side_camera", side ? nlohmann::json{{"camera", side->describe()}, {"connected", side->connected()}}
+                           : nlohmann::json(nullptr)},
       {"fps", drive.fps},
       {"frames",
        {{"captured", s.captured},

@@ -4,6 +4,7 @@
 //   GET  /api/state             the drive's state as JSON (counters, latency, channels, outputs)
 //   GET  /api/history?since=N   the drive channels over the last 10 s, sampled 25 times a second
 //   GET  /preview.jpg           the newest preview with its overlay
+//   GET  /preview-side.jpg      the side camera's, with its profile (404 without a side camera)
 //   POST /api/calibrate, /api/record/start|stop, /api/output/enable|disable
 //                               commands; they need the control token (401 without, 403 wrong)
 //
@@ -75,10 +76,16 @@ class Monitor {
   struct Counters {
     std::atomic<std::uint64_t> requests{0}, turned_away{0}, refused{0}, commands{0}, encoded{0};
   };
+  /// A preview encoded by the encoder thread for the workers to send.
+  struct Jpeg {
+    std::mutex mutex;
+    std::shared_ptr<const std::string> bytes;  // none before the first
+    std::uint64_t sequence = 0;                // the front frame's
+    void publish(std::string jpeg, std::uint64_t frame_sequence);
+  };
 
   void add_routes();
   void encoder_loop();
-  void encode(const PreviewFrame& frame);
   void sample_channels();
   std::string state_json();
   std::string history_json(std::uint64_t since) const;
@@ -94,9 +101,7 @@ class Monitor {
   std::unique_ptr<History> history_;  // encoder writes, workers read; under history_mutex_
   mutable std::mutex history_mutex_;
 
-  std::mutex jpeg_mutex_;
-  std::shared_ptr<const std::string> jpeg_;  // the newest preview, encoded
-  std::uint64_t jpeg_sequence_ = 0;
+  Jpeg front_jpeg_, side_jpeg_;  // the newest preview's images
 
   std::mutex state_mutex_;  // the state, rebuilt at most every kStateMaxAge for any number of clients
   std::string state_;

@@ -18,6 +18,22 @@ cv::Point to_canvas(double x, double y, int decimation) {
   return {static_cast<int>(std::lround(x * scale)), static_cast<int>(std::lround(y * scale))};
 }
 
+cv::Point to_canvas(const cv::Point2f& point, int decimation) { return to_canvas(point.x, point.y, decimation); }
+
+void dot(cv::Mat& canvas, const cv::Point2f& point, int decimation, const cv::Scalar& colour) {
+  cv::circle(canvas, to_canvas(point, decimation), 3 << kShift, colour, cv::FILLED, cv::LINE_AA, kShift);
+}
+
+void warn(cv::Mat& canvas, const char* text, int line) {
+  cv::putText(canvas, text, {8, 24 * line}, cv::FONT_HERSHEY_SIMPLEX, 0.7, kNoFaceColour, 2, cv::LINE_AA);
+}
+
+std::string encoded(const cv::Mat& canvas, int quality) {
+  std::vector<unsigned char> bytes;
+  cv::imencode(".jpg", canvas, bytes, {cv::IMWRITE_JPEG_QUALITY, quality});
+  return {bytes.begin(), bytes.end()};
+}
+
 /// The closed contour through landmarks first..last of `points`; none when one is unmapped.
 void draw_contour(cv::Mat& canvas, const Landmarks2D& points, int first, int last, int decimation) {
   std::vector<cv::Point> contour;
@@ -43,11 +59,39 @@ std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality
       cv::circle(canvas, to_canvas(frame.landmarks(0, i), frame.landmarks(1, i), k), 2 << kShift, kLandmarkColour,
                  cv::FILLED, cv::LINE_AA, kShift);
   } else {
-    cv::putText(canvas, "no face", {8, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.7, kNoFaceColour, 2, cv::LINE_AA);
+    warn(canvas, "no face", 1);
   }
-  std::vector<unsigned char> bytes;
-  cv::imencode(".jpg", canvas, bytes, {cv::IMWRITE_JPEG_QUALITY, quality});
-  return {bytes.begin(), bytes.end()};
+  return encoded(canvas, quality);
+}
+
+std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality) {
+  cv::cvtColor(frame.side_image, canvas, cv::COLOR_GRAY2BGR);
+  const int k = frame.side_decimation;
+  const SideProfile& p = frame.side_profile;
+  // The points are set as far as the search got (core/side_profile.hpp): the tip from kNoNose
+  // on, the root from kNoLip on, the rest with kOk.
+  if (p.status == SideStatus::kNoNose) dot(canvas, p.nose_tip, k, kBoxColour);
+  if (p.status == SideStatus::kNoLip || p.ok()) {
+    cv::line(canvas, to_canvas(p.nose_root, k), to_canvas(p.nose_tip, k), kBoxColour, 1, cv::LINE_AA, kShift);
+    dot(canvas, p.nose_root, k, kBoxColour);
+    dot(canvas, p.nose_tip, k, kBoxColour);
+  }
+  if (p.ok()) {
+    dot(canvas, p.subnasale, k, kLandmarkColour);
+    cv::line(canvas, to_canvas(p.nose_tip.x, p.upper_lip.y, k), to_canvas(p.upper_lip, k), kLipColour, 1,
+             cv::LINE_AA, kShift);
+    dot(canvas, p.upper_lip, k, kLipColour);
+  }
+  int line = 1;
+  if (!frame.side_connected) warn(canvas, "side camera lost", line++);
+  switch (p.status) {
+    case SideStatus::kOk: break;
+    case SideStatus::kEmptyCrop:
+    case SideStatus::kNoSilhouette: warn(canvas, "no profile", line); break;
+    case SideStatus::kNoNose: warn(canvas, "no nose", line); break;
+    case SideStatus::kNoLip: warn(canvas, "no upper lip", line); break;
+  }
+  return encoded(canvas, quality);
 }
 
 }  // namespace lipdrive

@@ -1,5 +1,5 @@
-// The monitor's preview image (docs/monitor.md): a PreviewFrame drawn with its overlay and
-// encoded as JPEG, on the monitor's encoder thread.
+// The monitor's preview images (docs/monitor.md): a PreviewFrame's front and side images drawn
+// with their overlays and encoded as JPEG, on the monitor's encoder thread.
 #pragma once
 
 #include "firmware_app/daemon/preview_feed.hpp"
@@ -15,5 +15,11 @@ namespace lipdrive {
 /// landmarks as green dots; "no face" in red when it was not. `canvas` is the caller's
 /// scratch image, reused from one call to the next. JPEG bytes at `quality` (1..100).
 std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality);
+
+/// The side camera's image of `frame` (frame.side must be set) in grey with the profile's
+/// points as far as they were found: nose root and tip joined in yellow, subnasale in green,
+/// upper lip in magenta with its lead over the nose tip as a horizontal line; what was not
+/// found, or "side camera lost", in red. JPEG bytes at `quality`.
+std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality);
 
 }  // namespace lipdrive
