@@ -148,4 +148,39 @@ ClosureMetric closure_metric(std::span<const double> values, std::span<const Wor
   return m;
 }
 
+SpeechAgreement speech_agreement(std::span<const double> truth, std::span<const double> output,
+                                 const std::vector<bool>& speech, int final_silence_first, int final_silence_last) {
+  if (truth.size() != output.size() || truth.size() != speech.size())
+    throw std::invalid_argument("speech_agreement: the series differ in length");
+  std::vector<double> spoken_truth, spoken_output;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    if (!speech[i]) continue;
+    spoken_truth.push_back(truth[i]);
+    spoken_output.push_back(output[i]);
+  }
+  const SeriesAgreement spoken = compare_series(spoken_truth, spoken_output);
+  SpeechAgreement result;
+  result.speech_frames = spoken.pairs_used;
+  result.pearson_r = spoken.pearson_r;
+  result.std_ratio = spoken.std_ratio;
+
+  std::vector<double> silent_truth, silent_output, all_truth;
+  for (double v : truth)
+    if (std::isfinite(v)) all_truth.push_back(v);
+  const int last = std::min(final_silence_last, static_cast<int>(truth.size()) - 1);
+  for (int f = std::max(final_silence_first, 0); f <= last; ++f) {
+    const auto i = static_cast<std::size_t>(f);
+    if (std::isnan(truth[i]) || std::isnan(output[i])) continue;
+    silent_truth.push_back(truth[i]);
+    silent_output.push_back(output[i]);
+  }
+  result.silence_distance = kNaN;
+  if (!silent_truth.empty() && !all_truth.empty()) {
+    const auto [lowest, highest] = std::minmax_element(all_truth.begin(), all_truth.end());
+    const double range = *highest - *lowest;
+    if (range > 0) result.silence_distance = std::abs(median(silent_output) - median(silent_truth)) / range;
+  }
+  return result;
+}
+
 }  // namespace lipdrive

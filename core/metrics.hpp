@@ -28,6 +28,24 @@ struct SeriesAgreement {
 /// series differ in length.
 SeriesAgreement compare_series(std::span<const double> truth, std::span<const double> output);
 
+/// How a mouth series driven by the voice (ẑ) follows the video's (z) of the same recording,
+/// as Deena (2012) scores speech-driven animation: Pearson r and σ(ẑ)/σ(z) over the speech
+/// frames only (silence would flatter r); and the rest it comes to in the final silence:
+/// |median ẑ - median z| over those frames, divided by the range (max - min) of z over every
+/// finite frame, so 0.1 is a tenth of the clip's movement.
+struct SpeechAgreement {
+  int speech_frames = 0;           // pairs used for r and the ratio
+  double pearson_r = 0;            // NaN when either is constant
+  double std_ratio = 0;            // NaN when z is constant
+  double silence_distance = 0;     // NaN without a final silence
+};
+
+/// `speech[f]`: frame f lies inside a spoken word; NaN values are skipped. `final_silence`:
+/// the frames [first, last] of the final silence, or first > last for none. Throws
+/// std::invalid_argument when the spans differ in length.
+SpeechAgreement speech_agreement(std::span<const double> truth, std::span<const double> output,
+                                 const std::vector<bool>& speech, int final_silence_first, int final_silence_last);
+
 /// A word of a transcript and the video frames it spans (inclusive).
 struct WordFrames {
   int first = 0, last = 0;

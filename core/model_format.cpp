@@ -1,6 +1,6 @@
 #include "core/model_format.hpp"
 
-#include "core/checksum.hpp"
+#include "core/byte_io.hpp"
 
 #include <zlib.h>
 
@@ -19,42 +19,6 @@ constexpr std::string_view kMagic = "LPDMODEL";
 
 // --- writing -------------------------------------------------------------
 
-class ByteWriter {
- public:
-  void u16(std::uint16_t v) { put_le(v, 2); }
-  void u32(std::uint32_t v) { put_le(v, 4); }
-  void u64(std::uint64_t v) { put_le(v, 8); }
-  void i32(std::int32_t v) { u32(static_cast<std::uint32_t>(v)); }
-  void f32(float v) { u32(std::bit_cast<std::uint32_t>(v)); }
-  void floats(const float* data, Eigen::Index count) {
-    for (Eigen::Index i = 0; i < count; ++i) f32(data[i]);
-  }
-  void bytes(std::string_view s) { out_.insert(out_.end(), s.begin(), s.end()); }
-  void bytes(std::span<const std::uint8_t> s) { out_.insert(out_.end(), s.begin(), s.end()); }
-  void names(const std::vector<std::string>& names) {
-    for (const auto& name : names) {
-      u16(static_cast<std::uint16_t>(name.size()));
-      bytes(name);
-    }
-  }
-  /// A column as f32 scale + i16 values (format version 2): value = scale * q, |error| <= scale / 2.
-  void quantized(const float* column, Eigen::Index count) {
-    float largest = 0;
-    for (Eigen::Index i = 0; i < count; ++i) largest = std::max(largest, std::abs(column[i]));
-    const float scale = largest > 0 ? largest / 32767.0f : 1.0f;
-    f32(scale);
-    for (Eigen::Index i = 0; i < count; ++i)
-      u16(static_cast<std::uint16_t>(static_cast<std::int16_t>(std::lround(column[i] / scale))));
-  }
-  std::vector<std::uint8_t>& buffer() { return out_; }
-
- private:
-  void put_le(std::uint64_t v, int size) {
-    for (int i = 0; i < size; ++i) out_.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
-  }
-  std::vector<std::uint8_t> out_;
-};
-
 void check_serializable(const MorphableModel& m) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument("cannot serialize model: " + what); };
   if (m.mean.size() % 3 != 0) fail("mean size is not a multiple of 3");
@@ -71,59 +35,6 @@ void check_serializable(const MorphableModel& m) {
 }
 
 // --- reading -------------------------------------------------------------
-
-std::uint64_t get_le(std::span<const std::uint8_t> bytes, std::size_t offset, int size) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < size; ++i) v |= std::uint64_t{bytes[offset + i]} << (8 * i);
-  return v;
-}
-
-// Sequential reader over the payload. Callers check the payload size against
-// the header first; take() still bounds-checks so a logic slip cannot read
-// out of bounds.
-class ByteReader {
- public:
-  ByteReader(std::span<const std::uint8_t> bytes, const std::string& source) : bytes_(bytes), source_(source) {}
-
-  std::uint16_t u16() { return static_cast<std::uint16_t>(get_le(take(2), 0, 2)); }
-  std::uint32_t u32() { return static_cast<std::uint32_t>(get_le(take(4), 0, 4)); }
-  std::int32_t i32() { return static_cast<std::int32_t>(u32()); }
-  float f32() { return std::bit_cast<float>(u32()); }
-  void floats(float* out, std::uint64_t count) {
-    for (std::uint64_t i = 0; i < count; ++i) out[i] = f32();
-  }
-  std::string string(std::size_t length) {
-    const auto s = take(length);
-    return std::string(s.begin(), s.end());
-  }
-  std::vector<std::string> names(std::uint32_t count) {
-    std::vector<std::string> out;
-    out.reserve(count);
-    for (std::uint32_t i = 0; i < count; ++i) out.push_back(string(u16()));
-    return out;
-  }
-  /// The inverse of ByteWriter::quantized.
-  void quantized(float* column, Eigen::Index count, const char* field) {
-    const float scale = f32();
-    if (!std::isfinite(scale) || !(scale > 0))
-      throw ModelFormatError(source_ + ": " + field + " has a scale that is not a positive number");
-    for (Eigen::Index i = 0; i < count; ++i) column[i] = scale * static_cast<std::int16_t>(u16());
-  }
-  std::size_t remaining() const { return bytes_.size() - position_; }
-
- private:
-  std::span<const std::uint8_t> take(std::size_t n) {
-    if (n > remaining())
-      throw ModelFormatError(source_ + ": payload ends early at byte " + std::to_string(position_) +
-                             " (sizes inconsistent with the payload length)");
-    const auto s = bytes_.subspan(position_, n);
-    position_ += n;
-    return s;
-  }
-  std::span<const std::uint8_t> bytes_;
-  std::size_t position_ = 0;
-  const std::string& source_;
-};
 
 struct Header {
   std::uint32_t version, vertices, components, triangles, poses, expressions = 0;
@@ -178,17 +89,7 @@ std::optional<std::uint64_t> fixed_payload_bytes(const Header& h) {
 // Checks that the payload fills the file exactly and matches its checksum.
 void check_payload(std::span<const std::uint8_t> bytes, std::size_t header_size, const Header& h,
                    const std::string& source) {
-  const std::uint64_t available = bytes.size() - header_size;
-  if (h.payload_length > available)
-    throw ModelFormatError(source + ": truncated (expected " + std::to_string(h.payload_length) +
-                           " payload bytes after the header, got " + std::to_string(available) + ")");
-  if (h.payload_length < available)
-    throw ModelFormatError(source + ": " + std::to_string(available - h.payload_length) +
-                           " unexpected bytes after the payload");
-  const std::uint32_t actual = crc32(bytes.subspan(header_size));
-  if (actual != h.checksum)
-    throw ModelFormatError(source + ": checksum mismatch (header says " + std::to_string(h.checksum) +
-                           ", payload has " + std::to_string(actual) + "): the file is corrupted");
+  checked_payload<ModelFormatError>(bytes, source, header_size, h.payload_length, h.checksum);
 }
 
 // Checks the counts against the (inflated) payload length they must fit in.
@@ -209,12 +110,7 @@ void check_counts(const Header& h, std::uint64_t payload_length, const std::stri
 
 // Reads and checks the header and the payload's extent and checksum; returns the header.
 Header read_header(std::span<const std::uint8_t> bytes, const std::string& source) {
-  const std::size_t magic_bytes = std::min(bytes.size(), kMagic.size());
-  if (!std::equal(kMagic.begin(), kMagic.begin() + magic_bytes, bytes.begin()))
-    throw ModelFormatError(source + ": not a lipdrive model (bad magic, expected \"LPDMODEL\")");
-  if (bytes.size() < kModelHeaderSize)
-    throw ModelFormatError(source + ": truncated (expected at least " + std::to_string(kModelHeaderSize) +
-                           " header bytes, got " + std::to_string(bytes.size()) + ")");
+  check_magic<ModelFormatError>(bytes, source, kMagic, "lipdrive model", kModelHeaderSize);
   Header h{};
   h.version = static_cast<std::uint32_t>(get_le(bytes, 8, 4));
   if (h.version != kModelFormatVersion && h.version != kExpressionModelFormatVersion)
@@ -374,7 +270,7 @@ std::vector<std::uint8_t> serialize_expression_model(const MorphableModel& m) {
 }
 
 /// The payload of either version; `in` is the (inflated) payload.
-MorphableModel read_payload(ByteReader& in, const Header& h, const std::string& source_name) {
+MorphableModel read_payload(ByteReader<ModelFormatError>& in, const Header& h, const std::string& source_name) {
   const Eigen::Index n3 = 3 * Eigen::Index{h.vertices};
   const Eigen::Index k = h.components;
   const bool compact = h.version == kExpressionModelFormatVersion;
@@ -425,12 +321,12 @@ MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std:
   const Header h = read_header(bytes, source_name);
   MorphableModel m;
   if (h.version == kModelFormatVersion) {
-    ByteReader in(bytes.subspan(kModelHeaderSize), source_name);
+    ByteReader<ModelFormatError> in(bytes.subspan(kModelHeaderSize), source_name);
     m = read_payload(in, h, source_name);
   } else {
     const std::vector<std::uint8_t> inflated =
         inflate_payload(bytes.subspan(kExpressionModelHeaderSize), h, source_name);
-    ByteReader in(inflated, source_name);
+    ByteReader<ModelFormatError> in(inflated, source_name);
     m = read_payload(in, h, source_name);
   }
   validate_values(m, source_name);

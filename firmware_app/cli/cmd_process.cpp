@@ -13,7 +13,10 @@
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/config/config.hpp"
+#include "core/voice_training.hpp"
+#include "drivers/audio_file.hpp"
 #include "firmware_app/config/factories.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/paths.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/tables/measures_csv.hpp"
@@ -54,6 +57,32 @@ struct ProcessOptions {
   int side_neutral_frames = 15;       // its first frames: the neutral pose the reference is fixed on
   std::string timecode;               // the first frame's timecode: adds the timecode column
   double timecode_fps = 25;
+  std::filesystem::path voice;        // a voice model: adds the voice's columns from the clip's sound
+};
+
+/// --voice: the voice model's measures for every frame of the clip, from its sound alone.
+class VoiceColumns {
+ public:
+  VoiceColumns(const std::filesystem::path& model_file, const std::filesystem::path& clip)
+      : model_(load_voice_model_file(model_file)) {
+    try {
+      const DecodedAudio sound = decode_audio(clip, model_.features.sample_rate);
+      start_s_ = sound.start_s;
+      outputs_ = predict_frames(model_, sound.samples);
+    } catch (const AudioSourceError& e) {
+      throw CommandError(e.what(), kExitDataError);
+    }
+  }
+  static constexpr const char* kHeader = ",open_voice,width_voice,protrusion_voice,seal_voice";
+  void append(fmt::memory_buffer& row, double media_time_s) const {
+    const VoiceOutput& out = output_at(model_, outputs_, media_time_s - start_s_);
+    for (const float value : out.values) fmt::format_to(std::back_inserter(row), ",{:.5f}", value);
+  }
+
+ private:
+  VoiceModel model_;
+  double start_s_ = 0;
+  std::vector<VoiceOutput> outputs_;
 };
 
 /// --timecode START at --timecode-fps: the start's frame number and the rate; nullopt without.
@@ -268,11 +297,13 @@ void run_process(const ProcessOptions& options) {
   std::ostream& out = options.out.empty() ? std::cout : file;
   std::optional<SideInput> side;
   if (!options.side.empty()) side.emplace(options);
+  std::optional<VoiceColumns> voice;
+  if (!options.voice.empty()) voice.emplace(options.voice, options.input);
   if (timecode)
     out << "# timecode_start " << format_frame(timecode->first, timecode->second).view() << " at "
         << rate_name(timecode->second) << " fps\n";
   out << measures_csv_header(options.include_landmarks) << (side ? ",protrusion_side" : "")
-      << (timecode ? ",timecode" : "") << '\n';
+      << (timecode ? ",timecode" : "") << (voice ? VoiceColumns::kHeader : "") << '\n';
 
   const bool independent = camera.independent_frames();
   const bool progress = ::isatty(STDERR_FILENO) == 1;
@@ -325,6 +356,7 @@ void run_process(const ProcessOptions& options) {
       append_timecode(row, frame_after(timecode->first, std::llround(frame.media_time_s * 1e9), timecode->second),
                       timecode->second);
     }
+    if (voice) voice->append(row, frame.media_time_s);
     row.push_back('\n');
     out.write(row.data(), static_cast<std::streamsize>(row.size()));
     ++rows;
@@ -380,6 +412,9 @@ void add_process_command(CLI::App& app) {
                   "timecode of the first frame (HH:MM:SS:FF): adds a timecode column, the recording's time from it");
   cmd->add_option("--timecode-fps", options->timecode_fps, "timecode rate: 24, 25, 29.97 (drop-frame) or 30")
       ->capture_default_str();
+  cmd->add_option("--voice", options->voice,
+                  "a voice model (.lpv, `lipdrive voice train`): adds open_voice, width_voice, protrusion_voice, "
+                  "seal_voice from the clip's sound alone");
   cmd->callback([options] { run_process(*options); });
 }
 

@@ -11,6 +11,7 @@ namespace lipdrive {
 
 void add_model_command(CLI::App& app);         // model build | info | render
 void add_process_command(CLI::App& app);       // process
+void add_voice_command(CLI::App& app);         // voice train | eval
 void add_eval_command(CLI::App& app);          // eval
 void add_plot_command(CLI::App& app);          // plot
 void add_calibrate_command(CLI::App& app);     // calibrate

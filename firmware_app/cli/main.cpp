@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   lipdrive::add_eval_command(app);
   lipdrive::add_plot_command(app);
   lipdrive::add_process_command(app);
+  lipdrive::add_voice_command(app);
   lipdrive::add_calibrate_command(app);
   lipdrive::add_run_command(app);
   lipdrive::add_check_config_command(app);

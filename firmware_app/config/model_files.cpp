@@ -1,6 +1,7 @@
 #include "firmware_app/config/model_files.hpp"
 
 #include "core/model_format.hpp"
+#include "core/voice_model_format.hpp"
 #include "firmware_app/cli/command_error.hpp"
 
 #include <fmt/format.h>
@@ -81,6 +82,20 @@ void replace_file(const std::filesystem::path& path, std::span<const std::uint8_
     throw CommandError(fmt::format("{}: cannot replace the file: {}", path.string(), ec.message()));
   }
 }
+
+VoiceModel load_voice_model_file(const std::filesystem::path& path) {
+  const auto bytes = read_bytes(path);
+  try {
+    return deserialize_voice_model(bytes, path.string());
+  } catch (const VoiceFormatError& e) {
+    throw CommandError(e.what(), kExitDataError);
+  }
+}
+
+void save_voice_model_file(const std::filesystem::path& path, const VoiceModel& model) {
+  replace_file(path, serialize_voice_model(model));
+}
+
 
 Mesh read_obj(const std::filesystem::path& path) {
   std::error_code ec;

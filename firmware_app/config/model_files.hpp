@@ -1,9 +1,10 @@
-// Model, mesh and landmark-map files on disk. Every error names the file; the
-// pure byte format lives in core/model_format.hpp.
+// Model, voice model, mesh and landmark-map files on disk. Every error names the file; the
+// pure byte formats live in core/model_format.hpp and core/voice_model_format.hpp.
 #pragma once
 
 #include "core/landmarks.hpp"
 #include "core/morphable_model.hpp"
+#include "core/voice_model.hpp"
 
 #include <array>
 #include <cstdint>
@@ -22,6 +23,14 @@ void save_model_file(const std::filesystem::path& path, const MorphableModel& mo
 /// Writes `bytes` to `path` through a temporary file and a rename, so a reader never sees a
 /// half-written file. Throws CommandError naming the file.
 void replace_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
+
+/// Reads a .lpv voice model file (core/voice_model_format.hpp). Throws CommandError:
+/// kExitNoInput when the file is missing or unreadable, kExitDataError (with the
+/// VoiceFormatError text) when invalid.
+VoiceModel load_voice_model_file(const std::filesystem::path& path);
+
+/// Writes a .lpv voice model file, like save_model_file.
+void save_voice_model_file(const std::filesystem::path& path, const VoiceModel& model);
 
 /// Reads a Wavefront OBJ with triangulated faces only (tinyobjloader); all
 /// shapes are concatenated in file order.
