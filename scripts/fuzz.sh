@@ -28,9 +28,13 @@ for target in "${targets[@]}"; do
   corpus=build-asan/fuzz-corpus/$target findings=build-asan/fuzz-findings/$target
   log=build-asan/fuzz-logs/$target.log
   mkdir -p "$corpus" "$findings" build-asan/fuzz-logs
+  # Inputs up to 64 KiB, or as long as the largest seed (a compact predictor is 160 KiB): a
+  # seed longer than -max_len would be cut, and never pass its file's checks.
+  max_len=$(find "tests/fuzz/$target" -type f -printf '%s\n' | sort -n | tail -1)
+  max_len=$((${max_len:-0} > 65536 ? max_len : 65536))
   status=0
   "$binary" "$corpus" "tests/fuzz/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
-    -max_len=65536 -print_final_stats=1 -artifact_prefix="$findings/" >"$log" 2>&1 || status=$?
+    -max_len="$max_len" -print_final_stats=1 -artifact_prefix="$findings/" >"$log" 2>&1 || status=$?
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
