@@ -109,7 +109,7 @@ Vector nnls_normal_equations(const Gram& gram, const Vector& h) {
   return w;
 }
 
-VisemeSolver::VisemeSolver(const MorphableModel& model)
+VisemeSolver::VisemeSolver(const MorphableModel& model, LandmarkSet set)
     : num_components_(std::min(model.num_components(), kMaxFitComponents)), directions_(decltype(directions_)::Zero()) {
   const auto neutral = model.pose_index("neutral");
   if (!neutral)
@@ -124,72 +124,74 @@ VisemeSolver::VisemeSolver(const MorphableModel& model)
     directions_.col(v) = stddev_.cwiseProduct(full - neutral_);
   }
   gram_ = directions_.transpose() * directions_;
+  for (const int i : landmark_indices(set))
+    if (model.landmark_vertex[static_cast<std::size_t>(i)] >= 0) matched_[num_matched_++] = i;
+  landmark_basis_.resize(num_matched_, 3 * (1 + num_components_));
+  for (int k = 0; k < num_matched_; ++k) {
+    const int v = model.landmark_vertex[static_cast<std::size_t>(matched_[k])];
+    for (int c = 0; c < 3; ++c) {
+      landmark_basis_(k, c) = model.mean(3 * v + c);
+      for (int j = 0; j < num_components_; ++j) landmark_basis_(k, 3 * j + 3 + c) = model.basis(3 * v + c, j);
+    }
+  }
   for (int pose = 0; pose < model.num_poses(); ++pose) {
     const auto parsed = parse_pose_name(model.pose_names[static_cast<std::size_t>(pose)]);
     if (!parsed) continue;
-    ExamplePose example{parsed->first, parsed->second, padded(model.pose_coefficients.col(pose), num_components_), {}};
-    const Eigen::VectorXd shape = stddev_.head(num_components_).cwiseProduct(example.alpha.head(num_components_));
-    for (int i = 0; i < kNumLandmarks; ++i) {
-      const int v = model.landmark_vertex[static_cast<std::size_t>(i)];
-      example.landmarks.col(i) =
-          v < 0 ? Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN())
-                : Eigen::Vector3d(model.mean.segment<3>(3 * v).cast<double>() +
-                                  model.basis.block(3 * v, 0, 3, num_components_).cast<double>() * shape);
-    }
+    ExamplePose example{parsed->first, parsed->second,
+                        stddev_.cwiseProduct(padded(model.pose_coefficients.col(pose), num_components_)), {}, {}};
+    Eigen::MatrixX3d points = landmark_basis_.leftCols<3>();
+    for (int j = 0; j < num_components_; ++j) points += example.shape(j) * landmark_basis_.middleCols<3>(3 * j + 3);
+    points.rowwise() -= points.colwise().mean();
+    example.scatter = points.transpose() * points;
+    example.scatter_inverse = example.scatter.ldlt().solve(Eigen::Matrix3d::Identity());
     poses_.push_back(example);
   }
 }
 
-VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& observed,
-                                  std::span<const int> landmarks) const {
+VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& observed) const {
+  // The observed landmarks over the set, centred: the translation of every camera below is
+  // the one that maps the pose's centroid onto theirs, which is what least squares gives.
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::ColMajor, kNumLandmarks, 2> seen(num_matched_, 2);
+  for (int k = 0; k < num_matched_; ++k) seen.row(k) = observed.col(matched_[k]).transpose();
+  if (!seen.allFinite() || num_matched_ == 0) return solve(fit.coefficients);
+  seen.rowwise() -= seen.colwise().mean();
+  const double seen_energy = seen.squaredNorm();
+  // The cross-covariance of the observed points with the mean and each basis column, as
+  // 2 x 3 blocks flattened column-major: column 0 the mean's, column 1 + j basis column j's.
+  // The observed points are centred, so a pose's centroid drops out of C = Σ õ xᵀ.
+  Eigen::Matrix<double, 6, 1 + kMaxFitComponents> cross_basis = decltype(cross_basis)::Zero();
+  for (int j = 0; j <= num_components_; ++j)
+    for (int c = 0; c < 3; ++c)
+      for (int row = 0; row < 2; ++row)
+        cross_basis(row + 2 * c, j) = seen.col(row).dot(landmark_basis_.col(3 * j + c));
   // Squared image distance of every example pose; the nearest is the ML pose.
   std::array<double, 512> distance_storage{};
   const std::size_t count = std::min(poses_.size(), distance_storage.size());
   std::size_t best = 0;
   for (std::size_t p = 0; p < count; ++p) {
+    const ExamplePose& pose = poses_[p];
     // The affine camera that best maps this pose's landmarks onto the observed ones (linear
-    // least squares, as in the fit's step 1), made weak-perspective, then the residual:
-    // ML over pose and camera.
-    Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
-    Eigen::Matrix<double, 4, 2> rhs = Eigen::Matrix<double, 4, 2>::Zero();
-    for (const int i : landmarks) {
-      if (!observed.col(i).allFinite() || !poses_[p].landmarks.col(i).allFinite()) continue;
-      const Eigen::Vector4d x = poses_[p].landmarks.col(i).homogeneous();
-      normal.noalias() += x * x.transpose();
-      rhs.noalias() += x * observed.col(i).transpose();
-    }
-    Eigen::Matrix<double, 4, 2> camera = Eigen::LDLT<Eigen::Matrix4d>(normal).solve(rhs);
-    {
-      // Nearest weak-perspective camera (scaled rotation rows), translation re-fitted.
-      // With M = U S Vᵀ that is (σ1+σ2)/2 · U [I 0] Vᵀ = (σ1+σ2)/2 · (M Mᵀ)^(-1/2) M; the square
-      // root of the 2x2 A = M Mᵀ has the closed form (A + √det A · I) / √(tr A + 2√det A), and
-      // σ1 + σ2 = √(tr A + 2√det A): no SVD per pose.
-      const Eigen::Matrix<double, 2, 3> m = camera.topRows<3>().transpose();
-      const Eigen::Matrix2d a = m * m.transpose();
-      const double root_det = std::sqrt(std::max(a.determinant(), 0.0));
-      const double singular_sum = std::sqrt(std::max(a.trace() + 2 * root_det, 1e-300));
-      const Eigen::Matrix2d root = (a + root_det * Eigen::Matrix2d::Identity()) / singular_sum;
-      const Eigen::Matrix<double, 2, 3> r = 0.5 * singular_sum * root.inverse() * m;
-      Eigen::Vector2d t = Eigen::Vector2d::Zero();
-      int n = 0;
-      for (const int i : landmarks) {
-        if (!observed.col(i).allFinite() || !poses_[p].landmarks.col(i).allFinite()) continue;
-        t += observed.col(i) - r * poses_[p].landmarks.col(i);
-        ++n;
-      }
-      camera.topRows<3>() = r.transpose();
-      camera.row(3) = (t / std::max(n, 1)).transpose();
-    }
-    double d = 0;
-    for (const int i : landmarks) {
-      if (!observed.col(i).allFinite() || !poses_[p].landmarks.col(i).allFinite()) continue;
-      d += (camera.transpose() * poses_[p].landmarks.col(i).homogeneous() - observed.col(i)).squaredNorm();
-    }
+    // least squares, as in the fit's step 1): M = C S⁻¹.
+    Eigen::Matrix<double, 6, 1> flat = cross_basis.col(0);
+    flat.noalias() += cross_basis.rightCols<kMaxFitComponents>() * pose.shape;
+    const Eigen::Map<const Eigen::Matrix<double, 2, 3>> cross(flat.data());
+    const Eigen::Matrix<double, 2, 3> m = cross * pose.scatter_inverse;
+    // Nearest weak-perspective camera (scaled rotation rows). With M = U S Vᵀ that is
+    // (σ1+σ2)/2 · U [I 0] Vᵀ = (σ1+σ2)/2 · (M Mᵀ)^(-1/2) M; the square root of the 2x2
+    // A = M Mᵀ has the closed form (A + √det A · I) / √(tr A + 2√det A), and
+    // σ1 + σ2 = √(tr A + 2√det A): no SVD per pose.
+    const Eigen::Matrix2d a = m * m.transpose();
+    const double root_det = std::sqrt(std::max(a.determinant(), 0.0));
+    const double singular_sum = std::sqrt(std::max(a.trace() + 2 * root_det, 1e-300));
+    const Eigen::Matrix2d root = (a + root_det * Eigen::Matrix2d::Identity()) / singular_sum;
+    const Eigen::Matrix<double, 2, 3> r = 0.5 * singular_sum * root.inverse() * m;
+    // Σ |R x̃ − õ|² expanded, so it costs no pass over the points.
+    const double d =
+        (r * pose.scatter * r.transpose()).trace() - 2 * (r * cross.transpose()).trace() + seen_energy;
     distance_storage[p] = d;
     if (d < distance_storage[best]) best = p;
   }
-  VisemeWeights out = solve(fit.coefficients);
-  if (count == 0 || poses_[best].viseme < 0) return out;  // nearest to neutral: the NNLS mix
+  if (count == 0 || poses_[best].viseme < 0) return solve(fit.coefficients);  // nearest to neutral: the NNLS mix
   const int viseme = poses_[best].viseme;
   // Refine the intensity: the neighbouring intensities of the same viseme (neutral = 0 %).
   double below_i = -1, below_d = 0, above_i = 2, above_d = 0;
@@ -211,10 +213,10 @@ VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& obser
     intensity = std::clamp(intensity, below_i, above_i);
   }
   // The rest of the fitted shape beyond the matched pose, as non-negative viseme weights.
-  const Coefficients pose_alpha = poses_[best].alpha;
-  const Coefficients target = stddev_.cwiseProduct(fit.coefficients - pose_alpha);
+  const Coefficients target = stddev_.cwiseProduct(fit.coefficients) - poses_[best].shape;
   const Vector rest = nnls_normal_equations(gram_, directions_.transpose() * target);
   const auto dominant = static_cast<float>(std::clamp(intensity, 0.0, 1.0));
+  VisemeWeights out;
   for (int v = 0; v < kNumVisemes; ++v)
     out[v] =
         v == viseme ? dominant : std::min(static_cast<float>(std::min(rest(v), 1.0)), std::nextafter(dominant, 0.0f));
@@ -229,11 +231,11 @@ VisemeWeights VisemeSolver::solve(const Coefficients& alpha) const {
   return out;
 }
 
-std::optional<VisemeSolver> make_viseme_solver(const MorphableModel& model) {
+std::optional<VisemeSolver> make_viseme_solver(const MorphableModel& model, LandmarkSet set) {
   if (!model.pose_index("neutral")) return std::nullopt;
   for (std::string_view viseme : kVisemeNames)
     if (!find_full_pose(model, viseme)) return std::nullopt;
-  return VisemeSolver(model);
+  return VisemeSolver(model, set);
 }
 
 double VisemeSolver::condition_number() const {

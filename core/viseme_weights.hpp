@@ -7,6 +7,7 @@
 
 #include "core/drive_signals.hpp"  // kNumVisemes, kVisemeNames
 #include "core/fitting.hpp"        // kMaxFitComponents
+#include "core/landmarks.hpp"
 #include "core/morphable_model.hpp"
 
 #include <Eigen/Core>
@@ -30,22 +31,28 @@ class VisemeSolver {
 
   /// Uses the model's pose named "neutral" and, per viseme, "<viseme>_100" or else the pose
   /// named exactly "<viseme>". Throws std::invalid_argument when one of them is missing.
-  explicit VisemeSolver(const MorphableModel& model);
+  /// Everything of the example poses that the pose match over `set` reuses every frame (their
+  /// landmarks centred, scatter matrices and inverses) is computed here, once.
+  VisemeSolver(const MorphableModel& model, LandmarkSet set);
 
   /// The weights of fitted coefficients (the first num_components() are read), each in [0, 1].
   VisemeWeights solve(const Coefficients& alpha) const;
 
   /// The weights of a fitted frame, judged in the image: for every example pose (neutral or
   /// "<viseme>_<percent>") the weak-perspective camera that maps its landmarks onto
-  /// `observed` over `landmarks` (least-squares affine, projected onto scaled rotation rows:
-  /// an affine camera's shear and unequal scales would absorb mouth shapes), and the residual; the nearest pose is the
-  /// maximum-likelihood (pose, camera) under i.i.d. Gaussian landmark noise. Its viseme gets the intensity refined
-  /// between the neighbouring intensities (parabola through the three distances); what the
-  /// fitted coefficients show beyond that pose goes to the NNLS of solve(), always below the
-  /// dominant weight. Nearest to neutral: solve(fit.coefficients). `observed` is the detected
-  /// landmarks (unbiased) or fit.projected. Allocates nothing; one 4x4 solve per example pose
-  /// per frame (0.4 ms for the 161 poses of the default model).
-  VisemeWeights solve(const FitOutput& fit, const Landmarks2D& observed, std::span<const int> landmarks) const;
+  /// `observed` over the landmark set (least-squares affine, projected onto scaled rotation
+  /// rows: an affine camera's shear and unequal scales would absorb mouth shapes), and the
+  /// residual; the nearest pose is the maximum-likelihood (pose, camera) under i.i.d. Gaussian
+  /// landmark noise. Its viseme gets the intensity refined between the neighbouring
+  /// intensities (parabola through the three distances); what the fitted coefficients show
+  /// beyond that pose goes to the NNLS of solve(), always below the dominant weight. Nearest to
+  /// neutral, or a landmark of the set not finite: solve(fit.coefficients). `observed` is the
+  /// detected landmarks (unbiased) or fit.projected. Allocates nothing. With centred
+  /// coordinates the affine camera is C S⁻¹ and the residual tr(R S Rᵀ) − 2 tr(R Cᵀ) + Σ|õ|²
+  /// (S the pose's scatter, precomputed; C = Σ õ xᵀ the observed-pose cross-covariance). C is
+  /// linear in the pose's shape coefficients, so per frame the observed points meet the mean
+  /// and the K basis columns once, and each pose costs a 6 x K product and a few 3 x 3 ones.
+  VisemeWeights solve(const FitOutput& fit, const Landmarks2D& observed) const;
 
   /// 2-norm condition number of the 16 viseme directions: how well the model's components
   /// tell the 16 visemes apart (large = some are nearly linear combinations of others).
@@ -58,20 +65,29 @@ class VisemeSolver {
   Eigen::Matrix<double, kMaxFitComponents, kNumVisemes> directions_;  // column v = σ ⊙ c_v
   Coefficients stddev_;                                               // σ, zero past num_components_
   Gram gram_;                                                         // directionsᵀ directions
-  // The example poses, for solve(fit, ...): viseme (-1 = neutral), intensity in [0, 1],
-  // coefficients and 3D landmarks (mm, NaN where unmapped).
+  // The landmarks of the set the model maps to a vertex: the pose match's points.
+  std::array<int, kNumLandmarks> matched_{};
+  int num_matched_ = 0;
+  // Over matched_, one row per point (each coordinate a contiguous column): the model's mean
+  // landmarks in columns 0-2 and basis column k's in columns 3k+3 to 3k+5, in mm. Every
+  // example pose's landmarks are mean + Σ_k shape_k · basis_k.
+  Eigen::MatrixXd landmark_basis_;
+  // The example poses, for solve(fit, ...): viseme (-1 = neutral), intensity in [0, 1], the
+  // shape σ ⊙ alpha, and over matched_ the scatter S = Σ x̃ x̃ᵀ of its landmarks centred on
+  // their centroid, and S⁻¹.
   struct ExamplePose {
     int viseme;
     double intensity;
-    Coefficients alpha;
-    Eigen::Matrix<double, 3, kNumLandmarks> landmarks;
+    Coefficients shape;
+    Eigen::Matrix3d scatter;
+    Eigen::Matrix3d scatter_inverse;
   };
   std::vector<ExamplePose> poses_;
 };
 
 /// The solver of a model that has the poses VisemeSolver needs, else nullopt (a user model
 /// built from other poses: it has no viseme weights).
-std::optional<VisemeSolver> make_viseme_solver(const MorphableModel& model);
+std::optional<VisemeSolver> make_viseme_solver(const MorphableModel& model, LandmarkSet set);
 
 /// Sealed lips in a shape the landmarks read as open are a bilabial closure (the landmark
 /// regression lags towards a half-open mouth on b, p, m): the articulation the other visemes

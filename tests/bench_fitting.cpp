@@ -1,8 +1,9 @@
 // Per-frame fit time (docs/method.md 3) for the default landmark set F4, 20 and 40 components,
-// 1 and 3 iterations, warm-started frame to frame as the pipeline does; and the ICT head's
-// expression fit.
+// 1 and 3 iterations, warm-started frame to frame as the pipeline does; the ICT head's
+// expression fit; the viseme weights of a fitted frame.
 #include "core/fitting.hpp"
 #include "core/statistics.hpp"
+#include "core/viseme_weights.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "reference_fitter.hpp"
 
@@ -128,6 +129,40 @@ BENCHMARK(BM_FitIct)
     ->Unit(benchmark::kMicrosecond)
     ->Repetitions(5)
     ->ReportAggregatesOnly(true);
+
+// The measures stage's viseme weights on the default model (its 161 example poses matched in
+// the image over F4, then the NNLS), on fitted frames cycling through the poses. Per call,
+// core/statistics' nearest rank.
+void BM_VisemePoseMatch(benchmark::State& state) {
+  const std::filesystem::path path = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+  if (!std::filesystem::exists(path)) {
+    state.SkipWithError("the default model is not built");
+    return;
+  }
+  const MorphableModel model = load_model_file(path);
+  const VisemeSolver solver(model, LandmarkSet::F4);
+  const Fitter fitter(model, LandmarkSet::F4);
+  const std::vector<Landmarks2D> frames = bench_frames(model);
+  std::vector<FitOutput> fits;
+  FitOutput output = Fitter::initial_output();
+  for (const Landmarks2D& frame : frames) {
+    fitter.fit(frame, output);
+    fits.push_back(output);
+  }
+  std::vector<double> us;
+  us.reserve(static_cast<std::size_t>(state.max_iterations));
+  std::size_t frame = 0;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(solver.solve(fits[frame], frames[frame]));
+    us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count());
+    frame = (frame + 1) % frames.size();
+  }
+  state.counters["median_us"] = median(us);
+  state.counters["p99_us"] = quantile(us, 0.99);
+}
+
+BENCHMARK(BM_VisemePoseMatch)->Unit(benchmark::kMicrosecond)->Repetitions(5)->ReportAggregatesOnly(true);
 
 }  // namespace
 }  // namespace lipdrive

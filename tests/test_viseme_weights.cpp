@@ -96,7 +96,7 @@ MorphableModel random_viseme_model(unsigned seed) {
 
 TEST(VisemeSolver, FullPosesOfASeparatingModelGiveOneWeightOfOne) {
   const MorphableModel model = random_viseme_model(4);
-  const VisemeSolver solver(model);
+  const VisemeSolver solver(model, kDefaultLandmarkSet);
   for (int v = 0; v < kNumVisemes; ++v) {
     SCOPED_TRACE(kVisemeNames[v]);
     const VisemeWeights w = solver.solve(pose_alpha(model, 1 + v));
@@ -129,7 +129,7 @@ TEST_P(DefaultModels, FullPosesAreReproducedAndTheirSeparationIsReported) {
   const auto path = default_model_path(GetParam());
   LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
-  const VisemeSolver solver(model);
+  const VisemeSolver solver(model, kDefaultLandmarkSet);
   const Eigen::MatrixXd directions = viseme_directions(model);
   const Eigen::VectorXd singular = Eigen::JacobiSVD<Eigen::MatrixXd>(directions).singularValues();
   std::string singular_list;
@@ -160,16 +160,16 @@ TEST(VisemeSolver, NeedsNeutralAndEveryFullViseme) {
   MorphableModel model = testing::random_model(100, 20, 1);
   model.pose_names = {"neutral"};
   model.pose_coefficients = Eigen::MatrixXf::Zero(20, 1);
-  EXPECT_THROW(VisemeSolver{model}, std::invalid_argument);
+  EXPECT_THROW(VisemeSolver(model, kDefaultLandmarkSet), std::invalid_argument);
   for (std::string_view name : kVisemeNames) model.pose_names.emplace_back(name);  // the 17-pose naming
   model.pose_coefficients = Eigen::MatrixXf::Random(20, 17);
-  EXPECT_NO_THROW(VisemeSolver{model});
+  EXPECT_NO_THROW(VisemeSolver(model, kDefaultLandmarkSet));
   model.pose_names[0] = "rest";
-  EXPECT_THROW(VisemeSolver{model}, std::invalid_argument);
+  EXPECT_THROW(VisemeSolver(model, kDefaultLandmarkSet), std::invalid_argument);
 }
 
 TEST(VisemeSolver, SolveAllocatesNothing) {
-  const VisemeSolver solver(random_viseme_model(2));
+  const VisemeSolver solver(random_viseme_model(2), kDefaultLandmarkSet);
   const VisemeSolver::Coefficients alpha = testing::random_coefficients(20, 3);
   test::count_allocations_on_this_thread(true);
   const long before = test::allocation_count();
@@ -302,17 +302,16 @@ constexpr double kRigEyeSpanPx = 225, kFarEyeSpanPx = 80;
 // Issue acceptance: every pose of the default model, projected with 1 px noise and fitted,
 // gives its viseme as the largest weight with the intensity within 0.15 in >= 90 % of poses.
 // Measured with the coefficient-only NNLS (solve(alpha)) and with the image-space pose match
-// (solve(fit, landmarks, set)); the oracle (true camera, nearest pose) bounds what any method
+// (solve(fit, landmarks)); the oracle (true camera, nearest pose) bounds what any method
 // can reach from these landmarks at this noise.
 TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
   const auto path = default_model_path("default.lpm");
   LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
-  const VisemeSolver solver(model);
-  const auto set = landmark_indices(kDefaultLandmarkSet);
+  const VisemeSolver solver(model, kDefaultLandmarkSet);
   const auto nnls = [&](const FitOutput& fit, const Landmarks2D&) { return solver.solve(fit.coefficients); };
   const auto matched = [&](const FitOutput& fit, const Landmarks2D& detected) {
-    return solver.solve(fit, detected, set);
+    return solver.solve(fit, detected);
   };
   std::string figures;
   Recovery rig;
@@ -340,17 +339,16 @@ TEST(VisemeSolver, PoseMatchAllocatesNothingAndGivesWeightsInRange) {
   const auto path = default_model_path("default.lpm");
   LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
-  const VisemeSolver solver(model);
+  const VisemeSolver solver(model, kDefaultLandmarkSet);
   const Fitter fitter(model, kDefaultLandmarkSet);
   const Landmarks2D truth = testing::project(
       testing::test_camera(2.5), testing::model_landmarks(model, pose_alpha(model, *model.pose_index("Aah_100"))));
   FitOutput fit = Fitter::initial_output();
   fitter.fit(truth, fit);
-  const auto set = landmark_indices(kDefaultLandmarkSet);
   test::count_allocations_on_this_thread(true);
   const long before = test::allocation_count();
   VisemeWeights w{};
-  for (int frame = 0; frame < 20; ++frame) w = solver.solve(fit, truth, set);
+  for (int frame = 0; frame < 20; ++frame) w = solver.solve(fit, truth);
   EXPECT_EQ(test::allocation_count() - before, 0);
   test::count_allocations_on_this_thread(false);
   for (const float x : w) EXPECT_TRUE(x >= 0 && x <= 1);

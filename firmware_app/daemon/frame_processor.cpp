@@ -10,9 +10,8 @@ namespace lipdrive {
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                                std::shared_ptr<const ShapePredictorData> predictor)
     : fitter_(model, set, settings),
-      set_(landmark_indices(set)),
       reference_(mouth_reference(model)),
-      visemes_(make_viseme_solver(model)),
+      visemes_(make_viseme_solver(model, set)),
       tracker_(std::move(predictor)) {}
 
 const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
@@ -37,7 +36,7 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   r.measures.seal = seal_probability(lips, r.measures.height_2d);
   r.measures.open = fused_opening(r.measures.height_2d, r.measures.seal);
   if (visemes_) {
-    r.visemes = visemes_->solve(fit_, r.landmarks, set_);
+    r.visemes = visemes_->solve(fit_, r.landmarks);
     transfer_to_bilabial(r.visemes, r.measures.seal);
   }
   r.measures_ms = ms_since(start);

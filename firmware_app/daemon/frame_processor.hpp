@@ -45,7 +45,6 @@ class FrameProcessor {
 
  private:
   Fitter fitter_;
-  std::span<const int> set_;  // the landmarks the fit and the viseme pose match use
   MouthReference reference_;
   std::optional<VisemeSolver> visemes_;  // nullopt: the model lacks the viseme poses
   FaceTracker tracker_;
