@@ -13,6 +13,13 @@ double MeasureRange::scale(double value) const {
   return std::clamp((value - min) / (max - min), 0.0, 1.0);
 }
 
+Eigen::VectorXf PerformerIdentity::vector(int model_components) const {
+  Eigen::VectorXf coefficients = Eigen::VectorXf::Zero(model_components);
+  const int n = std::min({components, model_components, kMaxFitComponents});
+  for (int i = 0; i < n; ++i) coefficients[i] = alpha[static_cast<std::size_t>(i)];
+  return coefficients;
+}
+
 CalibrationSample calibration_sample(const MouthMeasures& measures) {
   return {measures.open, measures.width_fit, measures.protrusion_3d};
 }

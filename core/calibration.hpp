@@ -7,6 +7,7 @@
 #include "core/mouth_measures.hpp"
 
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -27,6 +28,19 @@ struct CalibrationSample {
 };
 CalibrationSample calibration_sample(const MouthMeasures& measures);
 
+/// The performer's face in a model with expression shapes (the ICT head): the identity
+/// coefficients fit_identity() finds over the neutral frames of a calibration, frozen for every
+/// frame after. They belong to one model: `model_fingerprint` is its identity_fingerprint()
+/// (core/model_format.hpp), and another model ignores them. Fixed size, so a profile stays
+/// trivially copyable (the daemon publishes it between threads).
+struct PerformerIdentity {
+  std::uint32_t model_fingerprint = 0;
+  int components = 0;                           // coefficients in use, at most kMaxFitComponents
+  std::array<float, kMaxFitComponents> alpha{};  // in units of each component's stddev
+  /// The coefficients as the Fitter takes them, `model_components` long (zero past `components`).
+  Eigen::VectorXf vector(int model_components) const;
+};
+
 /// The ranges of one performer. The defaults, for a performer not yet calibrated, span what
 /// `lipdrive process` measures on the GRID takes and the generated talking face: closed to
 /// wide-open lips, rounded to spread, and the fit's protrusion range.
@@ -39,6 +53,8 @@ struct PerformerProfile {
   bool calibrated = false;                  // measured on this performer (else the defaults)
   /// docs/method.md 6 indices of the performer's neutral face, when the calibration saw one.
   std::optional<std::array<double, kNumFacialIndices>> face_indices;
+  /// The performer's identity, when the calibration fitted one (a model with expression shapes).
+  std::optional<PerformerIdentity> identity;
 };
 
 /// A capture that cannot calibrate: too few frames, or a range of motion without motion.

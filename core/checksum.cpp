@@ -4,8 +4,8 @@
 
 namespace lipdrive {
 
-std::uint32_t crc32(std::span<const std::uint8_t> bytes) {
-  return static_cast<std::uint32_t>(::crc32_z(::crc32_z(0, nullptr, 0), bytes.data(), bytes.size()));
+std::uint32_t crc32(std::span<const std::uint8_t> bytes, std::uint32_t previous) {
+  return static_cast<std::uint32_t>(::crc32_z(previous, bytes.data(), bytes.size()));
 }
 
 }  // namespace lipdrive

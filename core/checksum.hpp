@@ -8,6 +8,7 @@
 
 namespace lipdrive {
 
-std::uint32_t crc32(std::span<const std::uint8_t> bytes);
+/// The CRC-32 of `bytes`; `previous`, the CRC-32 of what came before them (0: nothing), continues it.
+std::uint32_t crc32(std::span<const std::uint8_t> bytes, std::uint32_t previous = 0);
 
 }  // namespace lipdrive

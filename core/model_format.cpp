@@ -17,6 +17,10 @@ namespace {
 
 constexpr std::string_view kMagic = "LPDMODEL";
 
+std::uint32_t crc_of_floats(std::uint32_t crc, const float* data, Eigen::Index count) {
+  return crc32({reinterpret_cast<const std::uint8_t*>(data), static_cast<std::size_t>(count) * sizeof(float)}, crc);
+}
+
 // --- writing -------------------------------------------------------------
 
 void check_serializable(const MorphableModel& m) {
@@ -331,6 +335,12 @@ MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std:
   }
   validate_values(m, source_name);
   return m;
+}
+
+std::uint32_t identity_fingerprint(const MorphableModel& model) {
+  std::uint32_t crc = crc_of_floats(0, model.mean.data(), model.mean.size());
+  crc = crc_of_floats(crc, model.stddev.data(), model.stddev.size());
+  return crc_of_floats(crc, model.basis.data(), model.basis.size());
 }
 
 }  // namespace lipdrive

@@ -89,6 +89,12 @@ class ModelFormatError : public std::runtime_error {
 /// disagree (e.g. basis rows != mean size) or a pose or expression name exceeds 65535 bytes.
 std::vector<std::uint8_t> serialize_model(const MorphableModel& model);
 
+/// What identifies a model's identity space (its mean, component scales and basis): zlib's
+/// CRC-32 (core/checksum.hpp) over their f32 values as held in memory. A performer's identity
+/// (core/calibration.hpp) is kept with it, so coefficients fitted to one model are never
+/// applied to another.
+std::uint32_t identity_fingerprint(const MorphableModel& model);
+
 /// Decodes and validates a model; source_name (usually the file path) starts
 /// every error message. Never reads outside `bytes`.
 MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std::string& source_name);

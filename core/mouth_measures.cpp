@@ -5,13 +5,14 @@
 
 namespace lipdrive {
 
-MouthReference mouth_reference(const MorphableModel& model) {
+MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity) {
   const int vertex = model.landmark_vertex[ibug::kOuterLipTop];
   if (vertex < 0 || vertex >= model.num_vertices())
     throw std::invalid_argument("the model does not map landmark 51 (upper-lip midpoint) to a vertex");
   const auto neutral = model.pose_index("neutral");
-  const Eigen::VectorXf shape =
-      neutral ? model.shape(model.pose_coefficients.col(*neutral)) : Eigen::VectorXf(model.mean);
+  const Eigen::VectorXf shape = neutral              ? model.shape(model.pose_coefficients.col(*neutral))
+                                : identity.size() > 0 ? model.shape(identity)
+                                                      : Eigen::VectorXf(model.mean);
   return MouthReference{static_cast<double>(shape(3 * vertex + 2))};
 }
 

@@ -33,9 +33,10 @@ struct MouthReference {
   double neutral_upper_lip_z = 0;  // model z (mm, out of the face) of landmark 51 in the neutral pose
 };
 
-/// The reference of a model: its pose named "neutral", or the mean shape when it has
-/// none. Throws std::invalid_argument when landmark 51 is unmapped.
-MouthReference mouth_reference(const MorphableModel& model);
+/// The reference of a model: its pose named "neutral", or else the mean shape moved by the
+/// performer's `identity` (Fitter's; empty = the mean face). Throws std::invalid_argument when
+/// landmark 51 is unmapped.
+MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity = Eigen::VectorXf());
 
 struct MouthMeasures {
   double width_2d = 0, height_2d = 0;    // tracked landmarks

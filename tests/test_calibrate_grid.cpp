@@ -1,15 +1,21 @@
 // The calibration round trip on a real talking face: `lipdrive calibrate` on a GRID take,
 // then the pipeline drives an open channel with that profile. The performer's mouth must use
-// the whole channel and come back to rest in the closing silence.
+// the whole channel and come back to rest in the closing silence. With the ICT head, the
+// calibration fits the performer's identity, and `lipdrive process --config` fits on it.
+#include "command_run.hpp"
+#include "core/model_format.hpp"
+#include "core/statistics.hpp"
 #include "daemon_process.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
+#include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
 #include "shared_predictor.hpp"
 #include "sim/simulated_camera.hpp"
 
 #include <fmt/format.h>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -111,6 +117,57 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
   EXPECT_GE(highest - lowest, 0.8);
   ASSERT_GT(silence_frames, 15);
   EXPECT_LE(silence_max, 0.1) << "mean " << silence_sum / silence_frames;
+  fs::remove_all(dir);
+}
+
+/// The median fit quality of the tracked rows of a `lipdrive process` table.
+double median_quality(const fs::path& table) {
+  std::vector<double> quality;
+  for (const double q : numeric_column(read_csv_table(table), "quality"))
+    if (std::isfinite(q)) quality.push_back(q);
+  return quality.empty() ? 0.0 : median(quality);
+}
+
+TEST(CalibrateGrid, TheIctHeadKeepsThePerformersIdentityAndTheFitUsesIt) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kTake);
+  const fs::path ict = fs::path(LIPDRIVE_MODEL_DIR) / "ict_face_light.lpm";
+  const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_test_calibrate_ict_{}", ::getpid());
+  fs::create_directories(dir);
+  // Calibrated without a performer named (the profile does not exist yet), then fitted with one
+  // and without.
+  const std::string model_lines =
+      fmt::format("[model]\nfile = \"{}\"\nlandmark_set = \"F5\"\n[camera]\ninput = \"{}\"\n", ict.string(),
+                  kTake.string());
+  std::ofstream(dir / "calibrate.toml") << model_lines
+                                        << fmt::format("[performer]\nprofiles_dir = \"{}\"\n", dir.string());
+  const fs::path config = dir / "lipdrive.toml";
+  std::ofstream(config) << model_lines
+                        << fmt::format("[performer]\nname = \"grid\"\nprofiles_dir = \"{}\"\n", dir.string());
+  std::ofstream(dir / "mean.toml") << model_lines;
+
+  const test::CommandRun calibrate = test::run_command(fmt::format(
+      "{} calibrate --config {} --performer grid --input {} --neutral-frames 15", LIPDRIVE_BINARY,
+      (dir / "calibrate.toml").string(), kTake.string()));
+  ASSERT_EQ(calibrate.exit_code, 0) << calibrate.output;
+  EXPECT_THAT(calibrate.output, ::testing::HasSubstr("identity: 20 components from 15 neutral frames"));
+  const PerformerProfile profile = load_profile(dir / "grid.toml");
+  ASSERT_TRUE(profile.identity.has_value()) << calibrate.output;
+  EXPECT_EQ(profile.identity->components, 20);
+  EXPECT_EQ(profile.identity->model_fingerprint, identity_fingerprint(load_model_file(ict)));
+  EXPECT_GT(profile.identity->vector(20).norm(), 0.1) << "a face other than the mean";
+
+  // The same take fitted on the performer's identity and on the mean face.
+  for (const auto& [settings, table] : {std::pair{config, dir / "grid.csv"}, std::pair{dir / "mean.toml", dir / "mean.csv"}}) {
+    const test::CommandRun process = test::run_command(fmt::format(
+        "{} process {} --config {} --out {}", LIPDRIVE_BINARY, kTake.string(), settings.string(), table.string()));
+    ASSERT_EQ(process.exit_code, 0) << process.output;
+  }
+  const double with_identity = median_quality(dir / "grid.csv"), mean_face = median_quality(dir / "mean.csv");
+  RecordProperty("ict_quality_identity", fmt::format("{:.4f}", with_identity));
+  RecordProperty("ict_quality_mean_face", fmt::format("{:.4f}", mean_face));
+  fmt::print("ICT head on {}: median fit quality {:.4f} on the performer's identity, {:.4f} on the mean face\n",
+             kTake.filename().string(), with_identity, mean_face);
+  EXPECT_GT(with_identity, mean_face) << "the performer's identity explains the landmarks better";
   fs::remove_all(dir);
 }
 

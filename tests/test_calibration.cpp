@@ -1,9 +1,18 @@
-// Performer calibration (docs/method.md 4 "Scaled"): neutral + range of motion -> [0, 1].
+// Performer calibration (docs/method.md 4 "Scaled"): neutral + range of motion -> [0, 1]; the
+// profile file with the performer's identity (docs/method.md 3), and old profiles.
 #include "core/calibration.hpp"
+#include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/performer_profile.hpp"
 
+#include <fmt/format.h>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
 #include <vector>
 
 namespace lipdrive {
@@ -84,6 +93,78 @@ TEST(Calibration, CaptureKeepsAtMostItsCapacity) {
   EXPECT_EQ(capture.samples()[0].open, 0.3);
   capture.clear();
   EXPECT_EQ(capture.size(), 0);
+}
+
+TEST(Calibration, IdentityIsTheFittersVectorZeroPastItsComponents) {
+  PerformerIdentity identity;
+  identity.components = 3;
+  identity.alpha[0] = 0.5f, identity.alpha[1] = -1.25f, identity.alpha[2] = 2.0f, identity.alpha[3] = 9.0f;
+  const Eigen::VectorXf five = identity.vector(5);
+  ASSERT_EQ(five.size(), 5);
+  EXPECT_EQ(five[1], -1.25f);
+  EXPECT_EQ(five[3], 0.0f) << "past the fitted components";
+  EXPECT_EQ(identity.vector(2).size(), 2);
+}
+
+class ProfileFile : public ::testing::Test {
+ protected:
+  void SetUp() override { std::filesystem::create_directories(dir_); }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::filesystem::path write(const std::string& text) {
+    const auto file = dir_ / "p.toml";
+    std::ofstream(file) << text;
+    return file;
+  }
+  std::string load_error(const std::string& text) {
+    try {
+      load_profile(write(text));
+    } catch (const CommandError& e) {
+      return e.what();
+    }
+    return "";
+  }
+  std::filesystem::path dir_ = std::filesystem::temp_directory_path() / fmt::format("lipdrive_profile_{}", ::getpid());
+};
+
+constexpr const char* kVersionOneProfile =
+    "version = 1\nperformer = \"old\"\n[rest]\nopen = 0.03\nwidth = 1.3\nprotrusion = 0.0\n"
+    "[open]\nmin = 0.03\nmax = 0.35\n[width]\nmin = 1.0\nmax = 1.8\n[protrusion]\nmin = -0.02\nmax = 0.18\n";
+
+TEST_F(ProfileFile, IdentityRoundTripsAndAVersionOneProfileStillLoads) {
+  PerformerProfile profile;
+  PerformerIdentity identity;
+  identity.model_fingerprint = 0xF00DCAFEu;
+  identity.components = 20;
+  for (int i = 0; i < 20; ++i) identity.alpha[static_cast<std::size_t>(i)] = 0.1f * static_cast<float>(i) - 0.77f;
+  profile.identity = identity;
+  save_profile(dir_ / "a.toml", "a", profile);
+  const PerformerProfile loaded = load_profile(dir_ / "a.toml");
+  ASSERT_TRUE(loaded.identity.has_value());
+  EXPECT_EQ(loaded.identity->model_fingerprint, 0xF00DCAFEu);
+  EXPECT_EQ(loaded.identity->components, 20);
+  EXPECT_EQ(loaded.identity->alpha, identity.alpha) << "every float exactly";
+
+  const PerformerProfile old = load_profile(write(kVersionOneProfile));
+  EXPECT_FALSE(old.identity.has_value()) << "version 1 has no identity: the mean face";
+  EXPECT_DOUBLE_EQ(old.open.max, 0.35);
+}
+
+TEST_F(ProfileFile, AMalformedIdentityIsAnErrorNamingTheKey) {
+  const std::string v2 = std::string(kVersionOneProfile).replace(0, 11, "version = 2");
+  using ::testing::HasSubstr;
+  EXPECT_THAT(load_error(v2 + "[identity]\nalpha = [0.5]\n"), HasSubstr("key identity.model_fingerprint"));
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = -1\nalpha = [0.5]\n"),
+              HasSubstr("key identity.model_fingerprint"));
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = []\n"), HasSubstr("key identity.alpha"));
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5, \"x\"]\n"),
+              HasSubstr("key identity.alpha[1]"));
+  std::string too_many = "0.5";
+  for (int i = 1; i <= kMaxFitComponents; ++i) too_many += ", 0.5";
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [" + too_many + "]\n"),
+              HasSubstr("key identity.alpha: missing, or not an array of 1 to 40 numbers"));
+  EXPECT_THAT(load_error(std::string(kVersionOneProfile) + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5]\n"),
+              HasSubstr("key identity: needs version 2"));
+  EXPECT_THAT(load_error(std::string(kVersionOneProfile).replace(0, 11, "version = 3")), HasSubstr("key version"));
 }
 
 }  // namespace

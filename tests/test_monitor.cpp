@@ -710,8 +710,9 @@ TEST(MonitorState, AfterStopTheStateEqualsTheDaemonsCounters) {
   std::ofstream(dir.path() / "lipdrive.toml") << monitor_config(dir.path(), port);
   Config config = load_config(dir.path() / "lipdrive.toml");
   static LoadedFiles files;
-  auto processor = make_processor(config, files);
-  Daemon daemon(std::move(config), std::move(processor), DaemonOptions{}, files);
+  PerformerProfile profile = load_performer(config);
+  auto processor = make_processor(config, files, profile);
+  Daemon daemon(std::move(config), std::move(profile), std::move(processor), DaemonOptions{}, files);
   ASSERT_TRUE(wait_for(
       [&] {
         daemon.poll();

@@ -81,8 +81,8 @@ TEST_F(ReloadTest, ProcessorsOfTheSameConfigurationShareTheirFiles) {
   config.model.file = test::kModel;
   config.tracker.predictor = kPredictor;
   LoadedFiles files;
-  const auto first = make_processor(config, files);
-  const auto second = make_processor(config, files);
+  const auto first = make_processor(config, files, PerformerProfile{});
+  const auto second = make_processor(config, files, PerformerProfile{});
   EXPECT_EQ(files.reads(), 2) << "the model and the predictor once each";
 }
 

@@ -1,15 +1,19 @@
 // `lipdrive calibrate`: a performer's profile from a neutral capture and a range-of-motion
 // capture, on the configured camera (live: follow the prompts) or a recording (--input: the
-// first tracked frames are the neutral pose, the rest is the range of motion). Camera,
+// first tracked frames are the neutral pose, the rest is the range of motion). For a model
+// with expression shapes the neutral capture also fits the performer's identity, which the
+// profile keeps and every later fit starts from. Camera,
 // tracker and fit come from the configuration through the daemon's factory
 // (config/factories.hpp).
 #include "core/calibration.hpp"
+#include "core/fitting.hpp"
+#include "core/model_format.hpp"
 #include "core/statistics.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
-#include "firmware_app/config/model_files.hpp"
+#include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -19,6 +23,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace lipdrive {
@@ -57,6 +62,54 @@ std::array<double, kNumFacialIndices> median_indices(const std::vector<FacialMea
   return medians;
 }
 
+/// The neutral capture: the measures of its tracked frames, the face's indices, and, for a
+/// model with expression shapes, the landmarks and images the identity is fitted on.
+struct NeutralCapture {
+  std::unique_ptr<CalibrationCapture> measures = std::make_unique<CalibrationCapture>();
+  std::vector<FacialMeasures> faces;
+  std::vector<Landmarks2D> landmarks;
+  std::vector<cv::Mat> images;
+  std::vector<double> quality;  // the fit's (MouthMeasures::quality)
+
+  void add(const FrameMeasurement& m, const cv::Mat& gray, bool keep_images) {
+    measures->add(m.measures);
+    faces.push_back(facial_measures(m.landmarks));
+    landmarks.push_back(m.landmarks);
+    quality.push_back(m.measures.quality);
+    if (keep_images) images.push_back(gray.clone());
+  }
+};
+
+/// The performer's identity (fit_identity over the neutral frames' landmarks, docs/method.md
+/// 3); the processor is rebuilt on it and the neutral frames are measured again, so the
+/// profile's rest values come from the fit the daemon will run.
+PerformerIdentity fit_performer_identity(const Config& config, LoadedFiles& files, NeutralCapture& neutral,
+                                         std::unique_ptr<FrameProcessor>& processor) {
+  const MorphableModel& model = *files.model(config.model.file);
+  PerformerIdentity identity;
+  try {
+    const Eigen::VectorXf alpha = fit_identity(model, config.model.landmark_set, neutral.landmarks);
+    identity.model_fingerprint = identity_fingerprint(model);
+    identity.components = std::min(static_cast<int>(alpha.size()), kMaxFitComponents);
+    for (int i = 0; i < identity.components; ++i) identity.alpha[static_cast<std::size_t>(i)] = alpha[i];
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(fmt::format("{}: {}", config.model.file.string(), e.what()), kExitDataError);
+  }
+  PerformerProfile with_identity;
+  with_identity.identity = identity;
+  processor = make_processor(config, files, with_identity);
+  const double mean_face_quality = median(neutral.quality);
+  NeutralCapture again;
+  for (const cv::Mat& image : neutral.images) {
+    const FrameMeasurement& m = processor->process(image);
+    if (m.tracked) again.add(m, image, false);
+  }
+  fmt::print("identity: {} components from {} neutral frames; fit quality at rest {:.3f} (mean face {:.3f})\n",
+             identity.components, neutral.landmarks.size(), median(again.quality), mean_face_quality);
+  neutral = std::move(again);
+  return identity;
+}
+
 void run_calibrate(const CalibrateOptions& options) {
   const Config config = load_config(options.config);
   const std::filesystem::path out =
@@ -64,10 +117,13 @@ void run_calibrate(const CalibrateOptions& options) {
   const int neutral_frames = options.neutral_frames > 0 ? options.neutral_frames : config.performer.neutral_frames;
   const bool recording = !options.input.empty() || config.camera.type == Config::Camera::Type::kSim;
   auto source = open_source(config, options);
-  auto processor = make_processor(config);
+  LoadedFiles files;
+  // The mean face until the neutral capture gives the performer's identity.
+  auto processor = make_processor(config, files, PerformerProfile{});
+  const bool fits_identity = files.model(config.model.file)->has_expressions();
+  std::optional<PerformerIdentity> identity;
 
-  auto neutral = std::make_unique<CalibrationCapture>();
-  std::vector<FacialMeasures> neutral_faces;
+  NeutralCapture neutral;
   auto motion = std::make_unique<CalibrationCapture>();
   if (!recording) fmt::print(stderr, "Hold a relaxed, neutral face with the lips closed...\n");
   Frame frame;
@@ -78,10 +134,11 @@ void run_calibrate(const CalibrateOptions& options) {
     if (status != GrabStatus::kFrame) continue;
     const FrameMeasurement& m = processor->process(frame.gray);
     if (!m.tracked) continue;
-    if (neutral->size() < neutral_frames) {
-      neutral->add(m.measures);
-      neutral_faces.push_back(facial_measures(m.landmarks));
-      if (neutral->size() == neutral_frames && !recording)
+    if (neutral.measures->size() < neutral_frames && !identity) {
+      neutral.add(m, frame.gray, fits_identity);
+      if (neutral.measures->size() < neutral_frames) continue;
+      if (fits_identity) identity = fit_performer_identity(config, files, neutral, processor);
+      if (!recording)
         fmt::print(stderr, "Now open wide, smile wide, round the lips (\"oo\"), close; repeat for {:.0f} s...\n",
                    options.motion_seconds);
       continue;
@@ -92,15 +149,16 @@ void run_calibrate(const CalibrateOptions& options) {
   }
   PerformerProfile profile;
   try {
-    profile = calibrate(neutral->samples(), motion->samples());
+    profile = calibrate(neutral.measures->samples(), motion->samples());
   } catch (const CalibrationError& e) {
     throw CommandError(fmt::format("calibration failed: {}", e.what()), kExitDataError);
   }
-  profile.face_indices = median_indices(neutral_faces);
-  const Compatibility check = model_compatibility(profile, load_model_file(config.model.file));
+  profile.face_indices = median_indices(neutral.faces);
+  profile.identity = identity;
+  const Compatibility check = model_compatibility(profile, *files.model(config.model.file));
   save_profile(out, options.performer, profile);
   fmt::print("{}: performer {} ({} neutral frames, {} motion frames)\n", out.string(), options.performer,
-             neutral->size(), motion->size());
+             neutral.measures->size(), motion->size());
   fmt::print("  open       {:.3f} .. {:.3f}\n  width      {:.3f} .. {:.3f}\n  protrusion {:.3f} .. {:.3f}\n",
              profile.open.min, profile.open.max, profile.width.min, profile.width.max, profile.protrusion.min,
              profile.protrusion.max);

@@ -279,7 +279,7 @@ std::unique_ptr<FrameProcessor> processor_for(const ProcessOptions& options) {
   if (!options.model.empty()) config.model.file = options.model;
   if (!options.landmark_set.empty()) config.model.landmark_set = *parse_landmark_set(options.landmark_set);
   if (!options.predictor.empty()) config.tracker.predictor = options.predictor;
-  return make_processor(config);
+  return make_processor(config, load_performer(config));
 }
 
 void run_process(const ProcessOptions& options) {

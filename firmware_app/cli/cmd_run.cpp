@@ -49,8 +49,10 @@ int run_daemon(RunOptions options) {
   spdlog::set_level(config.log_level);
   // The predictor and the model, loaded once for the process and shared by every reload.
   LoadedFiles files;
-  auto processor = make_processor(config, files);
-  auto daemon = std::make_unique<Daemon>(std::move(config), std::move(processor), options.daemon, files);
+  PerformerProfile profile = load_performer(config);
+  auto processor = make_processor(config, files, profile);
+  auto daemon =
+      std::make_unique<Daemon>(std::move(config), std::move(profile), std::move(processor), options.daemon, files);
   sd_notify(0, "READY=1");
 
   auto next_status =

@@ -107,7 +107,7 @@ std::vector<VoiceRecording> load_all(const std::vector<fs::path>& inputs, const 
                                      int sample_rate) {
   Config config;  // the defaults
   if (!config_file.empty()) config = load_config(config_file);
-  const std::unique_ptr<FrameProcessor> processor = make_processor(config);
+  const std::unique_ptr<FrameProcessor> processor = make_processor(config, load_performer(config));
   std::vector<VoiceRecording> recordings;
   for (const fs::path& input : inputs) recordings.push_back(load_voice_recording(input, sample_rate, *processor));
   return recordings;

@@ -5,7 +5,9 @@
 #ifdef LIPDRIVE_HAVE_LIBCAMERA
 #include "drivers/libcamera_camera.hpp"
 #endif
+#include "core/model_format.hpp"
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/performer_profile.hpp"
 #include "sim/ltc_generator.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -68,14 +70,34 @@ std::unique_ptr<TimecodeSource> make_timecode(const Config& config) {
   return nullptr;
 }
 
-std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles& files) {
+PerformerProfile load_performer(const Config& config) {
+  if (config.performer.name.empty()) return PerformerProfile{};
+  const PerformerProfile profile = load_profile(profile_path(config.performer.profiles_dir, config.performer.name));
+  spdlog::info("performer {}: open [{:.3f}, {:.3f}], width [{:.3f}, {:.3f}], protrusion [{:.3f}, {:.3f}]{}",
+               config.performer.name, profile.open.min, profile.open.max, profile.width.min, profile.width.max,
+               profile.protrusion.min, profile.protrusion.max,
+               profile.identity ? fmt::format(", identity of {} components", profile.identity->components) : "");
+  return profile;
+}
+
+std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles& files,
+                                               const PerformerProfile& profile) {
   const Config::Model& model = config.model;
   const std::shared_ptr<const MorphableModel> loaded = files.model(model.file);
   FitSettings fit;
   fit.iterations = model.iterations;
+  Eigen::VectorXf identity;
+  if (profile.identity && loaded->has_expressions()) {
+    if (profile.identity->model_fingerprint == identity_fingerprint(*loaded))
+      identity = profile.identity->vector(loaded->num_components());
+    else
+      spdlog::warn("performer {}: the profile's identity was fitted to another model than {}; fitting the mean face "
+                   "until `lipdrive calibrate` runs with this model",
+                   config.performer.name, model.file.string());
+  }
   try {
     return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit,
-                                            files.predictor(config.tracker.predictor));
+                                            files.predictor(config.tracker.predictor), identity);
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }

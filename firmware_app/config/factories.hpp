@@ -4,6 +4,7 @@
 #pragma once
 
 #include "drivers/frame_source.hpp"
+#include "core/calibration.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
@@ -28,14 +29,21 @@ std::unique_ptr<TimecodeSource> make_timecode(const Config& config);
 /// `lipdrive check-config`. Throws ConfigError naming the file, the key and the device.
 void check_audio_inputs(const Config& config);
 
+/// The profile of [performer] name (the uncalibrated defaults when no performer is named).
+/// Throws CommandError naming the file when it is missing or malformed.
+PerformerProfile load_performer(const Config& config);
+
 /// Model + predictor + tracker + fitter from [model] and [tracker], the files from `files`
-/// (shared with earlier processors when unchanged). Throws CommandError: a missing model or
-/// predictor (exit 66), one that is invalid or cannot be fitted (exit 65).
-std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles& files);
+/// (shared with earlier processors when unchanged), the fit on the performer's identity when
+/// `profile` holds one of this model (else the mean face; one of another model is ignored
+/// with a warning). Throws CommandError: a missing model or predictor (exit 66), one that is
+/// invalid or cannot be fitted (exit 65).
+std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles& files,
+                                               const PerformerProfile& profile);
 /// The same for a command that builds one processor.
-inline std::unique_ptr<FrameProcessor> make_processor(const Config& config) {
+inline std::unique_ptr<FrameProcessor> make_processor(const Config& config, const PerformerProfile& profile) {
   LoadedFiles files;
-  return make_processor(config, files);
+  return make_processor(config, files, profile);
 }
 
 }  // namespace lipdrive

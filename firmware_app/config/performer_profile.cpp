@@ -7,6 +7,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <limits>
 #include <fstream>
 #include <stdexcept>
 
@@ -15,7 +18,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr int kProfileVersion = 1;
+// Version 2 added [identity] (a model with expression shapes); version 1 files load as before.
+constexpr int kProfileVersion = 2;
 
 [[noreturn]] void malformed(const fs::path& file, std::string_view key, std::string_view reason) {
   throw CommandError(fmt::format("{}: key {}: {}", file.string(), key, reason), kExitDataError);
@@ -33,6 +37,32 @@ MeasureRange read_range(const toml::table& root, const fs::path& file, std::stri
 }
 
 toml::table range_table(const MeasureRange& range) { return toml::table{{"min", range.min}, {"max", range.max}}; }
+
+PerformerIdentity read_identity(const toml::table& table, const fs::path& file) {
+  PerformerIdentity identity;
+  const auto fingerprint = table["model_fingerprint"].value<std::int64_t>();
+  if (!fingerprint || *fingerprint < 0 || *fingerprint > std::numeric_limits<std::uint32_t>::max())
+    malformed(file, "identity.model_fingerprint", "missing or not a 32-bit unsigned integer");
+  identity.model_fingerprint = static_cast<std::uint32_t>(*fingerprint);
+  const toml::array* alpha = table["alpha"].as_array();
+  if (!alpha || alpha->empty() || alpha->size() > identity.alpha.size())
+    malformed(file, "identity.alpha", fmt::format("missing, or not an array of 1 to {} numbers", identity.alpha.size()));
+  for (std::size_t i = 0; i < alpha->size(); ++i) {
+    const auto value = (*alpha)[i].value<double>();
+    if (!value || !std::isfinite(*value)) malformed(file, fmt::format("identity.alpha[{}]", i), "not a finite number");
+    identity.alpha[i] = static_cast<float>(*value);
+  }
+  identity.components = static_cast<int>(alpha->size());
+  return identity;
+}
+
+toml::table identity_table(const PerformerIdentity& identity) {
+  toml::array alpha;
+  for (int i = 0; i < identity.components; ++i)
+    alpha.push_back(static_cast<double>(identity.alpha[static_cast<std::size_t>(i)]));
+  return toml::table{{"model_fingerprint", static_cast<std::int64_t>(identity.model_fingerprint)},
+                     {"alpha", std::move(alpha)}};
+}
 
 }  // namespace
 
@@ -53,8 +83,9 @@ PerformerProfile load_profile(const fs::path& file) {
   } catch (const toml::parse_error& e) {
     throw CommandError(fmt::format("{}: not a performer profile: {}", file.string(), e.description()), kExitDataError);
   }
-  if (root["version"].value<int>() != kProfileVersion)
-    malformed(file, "version", fmt::format("must be {}", kProfileVersion));
+  const auto version = root["version"].value<int>();
+  if (!version || *version < 1 || *version > kProfileVersion)
+    malformed(file, "version", fmt::format("must be 1 to {}", kProfileVersion));
   PerformerProfile profile;
   profile.rest = {read_number(root, file, "rest", "open"), read_number(root, file, "rest", "width"),
                   read_number(root, file, "rest", "protrusion")};
@@ -70,6 +101,10 @@ PerformerProfile load_profile(const fs::path& file) {
     for (int i = 0; i < kNumFacialIndices; ++i)
       values[i] = read_number(root, file, "indices", kFacialIndices[static_cast<std::size_t>(i)].name);
     profile.face_indices = values;
+  }
+  if (const toml::table* identity = root["identity"].as_table()) {
+    if (*version < 2) malformed(file, "identity", "needs version 2");
+    profile.identity = read_identity(*identity, file);
   }
   profile.calibrated = true;
   return profile;
@@ -100,13 +135,15 @@ void save_profile(const fs::path& file, const std::string& performer, const Perf
                      (*profile.face_indices)[static_cast<std::size_t>(i)]);
     root.insert("indices", std::move(indices));
   }
+  if (profile.identity) root.insert("identity", identity_table(*profile.identity));
   std::error_code ec;
   if (file.has_parent_path()) fs::create_directories(file.parent_path(), ec);
   const fs::path temporary = file.string() + ".tmp";
   {
     std::ofstream out(temporary);
     out << "# lipdrive performer profile: measures in units of d (docs/method.md 4); the daemon maps\n"
-           "# each [min, max] onto [0, 1]. Written by `lipdrive calibrate` and the calibrate command.\n"
+           "# each [min, max] onto [0, 1]. [identity]: the performer's face in the model with that\n"
+           "# fingerprint (docs/method.md 3). Written by `lipdrive calibrate` and the calibrate command.\n"
         << root << '\n';
     out.flush();
     if (!out) throw CommandError(fmt::format("{}: cannot write the profile", temporary.string()), kExitFailure);

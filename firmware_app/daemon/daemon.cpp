@@ -14,15 +14,6 @@
 namespace lipdrive {
 namespace {
 
-PerformerProfile load_performer(const Config& config) {
-  if (config.performer.name.empty()) return PerformerProfile{};
-  const PerformerProfile profile = load_profile(profile_path(config.performer.profiles_dir, config.performer.name));
-  spdlog::info("performer {}: open [{:.3f}, {:.3f}], width [{:.3f}, {:.3f}], protrusion [{:.3f}, {:.3f}]",
-               config.performer.name, profile.open.min, profile.open.max, profile.width.min, profile.width.max,
-               profile.protrusion.min, profile.protrusion.max);
-  return profile;
-}
-
 /// The performer's mouth and the model's are two vertical-mouth-height classes apart
 /// (docs/method.md 6): logged, and reported in the status word.
 bool model_mismatch(const Config& config, const PerformerProfile& profile, LoadedFiles& files) {
@@ -38,9 +29,9 @@ bool model_mismatch(const Config& config, const PerformerProfile& profile, Loade
 
 }  // namespace
 
-Daemon::Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options,
-               LoadedFiles& files)
-    : config_(std::move(config)), profile_(load_performer(config_)) {
+Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
+               const DaemonOptions& options, LoadedFiles& files)
+    : config_(std::move(config)), profile_(std::move(profile)) {
   PipelineSettings settings;
   settings.max_frames = options.max_frames;
   settings.watchdog_interval = options.watchdog_interval;
@@ -190,10 +181,12 @@ void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, 
             LoadedFiles& files) {
   sd_notify(0, "RELOADING=1");
   Config config;
+  PerformerProfile profile;
   std::unique_ptr<FrameProcessor> processor;
   try {
     config = load_config(file);
-    processor = make_processor(config, files);
+    profile = load_performer(config);
+    processor = make_processor(config, files, profile);
   } catch (const std::exception& e) {
     spdlog::error("reload failed, keeping the running configuration: {}", e.what());
     sd_notify(0, "READY=1");
@@ -201,14 +194,16 @@ void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, 
   }
   spdlog::info("{}: reloaded; restarting the pipeline", file.string());
   Config previous = daemon->config();
+  PerformerProfile previous_profile = daemon->profile();
   daemon.reset();
   try {
     spdlog::set_level(config.log_level);
-    daemon = std::make_unique<Daemon>(std::move(config), std::move(processor), options, files);
+    daemon = std::make_unique<Daemon>(std::move(config), std::move(profile), std::move(processor), options, files);
   } catch (const std::exception& e) {
     spdlog::error("the new configuration does not start, going back to the previous one: {}", e.what());
     spdlog::set_level(previous.log_level);
-    daemon = std::make_unique<Daemon>(previous, make_processor(previous, files), options, files);
+    daemon = std::make_unique<Daemon>(previous, previous_profile, make_processor(previous, files, previous_profile),
+                                      options, files);
   }
   sd_notify(0, "READY=1");
 }

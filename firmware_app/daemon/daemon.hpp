@@ -41,10 +41,12 @@ class Monitor;
 
 class Daemon {
  public:
-  /// Builds everything `config` describes around `processor` and starts it. Throws
-  /// ConfigError or CommandError when something cannot be opened or loaded.
-  /// `files` holds the model the performer's profile is checked against (it outlives the daemon).
-  Daemon(Config config, std::unique_ptr<FrameProcessor> processor, const DaemonOptions& options, LoadedFiles& files);
+  /// Builds everything `config` describes around `processor` (made with `profile`, the
+  /// performer's: load_performer) and starts it. Throws ConfigError or CommandError when
+  /// something cannot be opened or loaded. `files` holds the model the performer's profile is
+  /// checked against (it outlives the daemon).
+  Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
+         const DaemonOptions& options, LoadedFiles& files);
   ~Daemon();
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
@@ -66,6 +68,8 @@ class Daemon {
   bool finished() const { return pipeline_->finished(); }
   bool failed() const { return pipeline_->failed(); }
   const Config& config() const { return config_; }
+  /// The performer's profile as last loaded or saved.
+  const PerformerProfile& profile() const { return profile_; }
 
  private:
   /// [monitor]: the page; a port or address that cannot be listened on is logged and the

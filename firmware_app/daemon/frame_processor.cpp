@@ -8,9 +8,9 @@
 namespace lipdrive {
 
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
-                               std::shared_ptr<const ShapePredictorData> predictor)
-    : fitter_(model, set, settings),
-      reference_(mouth_reference(model)),
+                               std::shared_ptr<const ShapePredictorData> predictor, const Eigen::VectorXf& identity)
+    : fitter_(model, set, settings, identity),
+      reference_(mouth_reference(model, identity)),
       visemes_(make_viseme_solver(model, set)),
       tracker_(std::move(predictor)) {}
 

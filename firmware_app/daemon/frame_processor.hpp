@@ -29,8 +29,11 @@ struct FrameMeasurement {
 class FrameProcessor {
  public:
   /// Throws std::invalid_argument when the model cannot be fitted with `set` (see Fitter).
+  /// `identity`: the performer's, for a model with expression shapes (PerformerIdentity; empty =
+  /// the mean face).
   FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
-                 std::shared_ptr<const ShapePredictorData> predictor);
+                 std::shared_ptr<const ShapePredictorData> predictor,
+                 const Eigen::VectorXf& identity = Eigen::VectorXf());
 
   /// Measures one luma frame (CV_8UC1). Allocation-free while the face stays tracked
   /// (acquiring it runs dlib's detector, which allocates).
