@@ -48,7 +48,7 @@ std::span<const double> ChannelBank::step(const DriveSignals& signals, const Dri
   last_step_ns_ = input.now_ns;
   stepped_ = true;
 
-  const bool live = input.tracked && input.enabled;
+  const bool live = (input.tracked || input.voice) && input.enabled;
   if (live) last_tracked_ns_ = input.now_ns;
   // Within the hold time a loss keeps the last tracked targets at full gain.
   const bool holding =

@@ -46,6 +46,7 @@ double map_to_output(const ChannelSpec& spec, double signal_value);
 /// What step() needs besides the signals.
 struct DriveInput {
   bool tracked = false;            // the signals come from a tracked face
+  bool voice = false;              // the signals come from the voice (the face is lost): they drive like a face's
   bool enabled = true;             // outputs enabled; disabled eases to neutral like a loss
   std::int64_t now_ns = 0;         // monotonic
   std::int64_t frame_time_ns = 0;  // capture time of the signals: the smoothing's clock
@@ -54,7 +55,7 @@ struct DriveInput {
 /// The state of all channels of one drive. Channel values start at neutral.
 ///
 /// The fail-safe is one gain g in [0, 1] shared by all channels: value = neutral +
-/// g (target - neutral). While tracked, g rises to 1 over ease_ns; when tracking has been lost
+/// g (target - neutral). While tracked (or the voice drives), g rises to 1 over ease_ns; when tracking has been lost
 /// for hold_ns it falls to 0 over ease_ns, the targets frozen at the last tracked values, so
 /// neither the loss nor the return makes a jump. The slew limit applies last, to everything
 /// including overrides. Channels following kTracking report the state and are not eased.

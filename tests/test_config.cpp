@@ -124,6 +124,40 @@ TEST_F(ConfigTest, MissingFilesAreNamed) {
   EXPECT_THAT(error(), HasSubstr("key camera.device: no such device: /dev/video-lipdrive-missing"));
 }
 
+TEST_F(ConfigTest, VoiceKeysLoadAndMistakesNameTheKey) {
+  const fs::path model = dir_ / "performer.lpv";
+  std::ofstream(model) << "not read when the configuration loads";
+  write("", fmt::format("[voice]\nenabled = true\nmodel = \"{}\"\ncrossfade_ms = 100\naudio_timeout_ms = 300\n",
+                        model.string()));
+  const Config config = load_config(file_);
+  EXPECT_TRUE(config.voice.enabled);
+  EXPECT_EQ(config.voice.model, model);
+  EXPECT_EQ(config.voice.input, Config::Voice::Input::kSim);
+  EXPECT_EQ(config.voice.alsa.sample_rate, 16000);
+  EXPECT_EQ(config.voice.alsa.period_frames, 160);
+  EXPECT_EQ(config.voice.crossfade_ms, 100);
+  EXPECT_EQ(config.voice.audio_timeout_ms, 300);
+
+  write("", "[voice]\nenabled = true\n");
+  EXPECT_EQ(error(),
+            file_.string() + ": key voice.model: must name the performer's voice model (.lpv, `lipdrive voice train`)");
+  write("", fmt::format("[voice]\nenabled = true\nmodel = \"{}\"", (dir_ / "missing.lpv").string()));
+  EXPECT_THAT(error(), HasSubstr("key voice.model: no such voice model file: " + (dir_ / "missing.lpv").string()));
+  write("", "[voice]\nloudness = 3");
+  EXPECT_THAT(error(), HasSubstr("key voice.loudness: unknown key"));
+  write("", "[voice]\ninput = \"usb\"");
+  EXPECT_THAT(error(), HasSubstr("key voice.input: must be one of sim, alsa, got \"usb\""));
+  write("", "[voice]\ncrossfade_ms = 5000");
+  EXPECT_THAT(error(), HasSubstr("key voice.crossfade_ms: must be between 0 and 2000, got 5000"));
+  write("", "[voice]\nsample_rate = 4000");
+  EXPECT_THAT(error(), HasSubstr("key voice.sample_rate: must be between 8000 and 48000, got 4000"));
+  write("", "[voice]\ninput = \"alsa\"\ndevice = \"\"");
+  EXPECT_THAT(error(), HasSubstr("key voice.device: must name an ALSA capture device"));
+  // The clip's sound plays at its own rate: a replay at another rate cannot keep in step.
+  write("replay_fps = 60", fmt::format("[voice]\nenabled = true\nmodel = \"{}\"", model.string()));
+  EXPECT_THAT(error(), HasSubstr("key voice.input: \"sim\" plays the clip's sound at its own rate"));
+}
+
 TEST_F(ConfigTest, SyntaxErrorsNameTheLine) {
   write_text("[camera]\nfps = = 3\n");
   EXPECT_THAT(error(), HasSubstr(file_.string() + ":2:"));

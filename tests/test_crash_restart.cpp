@@ -73,7 +73,7 @@ TEST(CrashRestart, KillNineMidTakeKeepsTheLinesAndARestartReachesItsFirstFrame) 
   ASSERT_EQ(crashed.size(), 1u);
   const TakeLines lines = split_lines(read_file(crashed[0]));
   ASSERT_FALSE(lines.complete.empty());
-  const std::string header = measures_csv_header(false) + ",capture_time_ns";
+  const std::string header = measures_csv_header(false) + ",drive,capture_time_ns";
   EXPECT_EQ(lines.complete[0], header);
   const std::size_t columns = fields(header);
   int rows = 0;

@@ -42,7 +42,7 @@ Take read_take(const fs::path& dir) {
   std::getline(in, take.first_line);
   std::string header;
   std::getline(in, header);
-  EXPECT_TRUE(header.ends_with(",capture_time_ns,timecode")) << header;
+  EXPECT_TRUE(header.ends_with(",drive,capture_time_ns,timecode")) << header;
   for (std::string line; std::getline(in, line);) {
     const auto last = line.rfind(','), before = line.rfind(',', last - 1);
     take.capture_ns.push_back(std::stoll(line.substr(before + 1, last - before - 1)));

@@ -1,7 +1,9 @@
-// The safety layer of the drive (docs/data-flow.md): mapping, clamp, slew limit, fail-safe ease.
+// The safety layer of the drive (docs/data-flow.md): mapping, clamp, slew limit, fail-safe ease;
+// the hand-over between the face and the voice (docs/voice.md).
 #include "allocation_counter.hpp"
 #include "core/calibration.hpp"
 #include "core/drive_channels.hpp"
+#include "core/drive_source.hpp"
 
 #include <gtest/gtest.h>
 
@@ -207,6 +209,77 @@ TEST(ChannelBank, StepAllocatesNothing) {
   const long before = test::allocation_count();
   for (int frame = 0; frame < 1000; ++frame)
     bank.step(open_at(static_cast<float>(frame % 10) / 10), {.tracked = frame % 100 < 70, .now_ns = frame * kFrameNs});
+  const long allocations = test::allocation_count() - before;
+  test::count_allocations_on_this_thread(false);
+  EXPECT_EQ(allocations, 0);
+}
+
+TEST(DriveSource, TheFaceFirstThenTheVoiceThenTheFailSafe) {
+  EXPECT_EQ(select_source(true, true), DriveSource::kVideo);
+  EXPECT_EQ(select_source(true, false), DriveSource::kVideo);
+  EXPECT_EQ(select_source(false, true), DriveSource::kVoice);
+  EXPECT_EQ(select_source(false, false), DriveSource::kFailSafe);
+  EXPECT_EQ(drive_source_name(DriveSource::kVideo), "video");
+  EXPECT_EQ(drive_source_name(DriveSource::kVoice), "voice");
+  EXPECT_EQ(drive_source_name(DriveSource::kFailSafe), "fail-safe");
+}
+
+TEST(HandOver, CrossFadesToTheVoiceAndBackOverTheCrossFadeTime) {
+  constexpr std::int64_t kFade = 150 * kMs, kTick = 10 * kMs;
+  HandOver hand_over(kFade);
+  std::int64_t now = 0;
+  for (; now < 100 * kMs; now += kTick)
+    EXPECT_EQ(hand_over.step(DriveSource::kVideo, open_at(0.8f), open_at(0.2f), now)[Signal::kOpen], 0.8f);
+  // The face is lost: from the last video value to the voice in 150 ms, never a jump.
+  float last = 0.8f;
+  const std::int64_t lost = now;
+  for (; now <= lost + kFade; now += kTick) {
+    const float open = hand_over.step(DriveSource::kVoice, open_at(0.0f), open_at(0.2f), now)[Signal::kOpen];
+    EXPECT_LE(open, last);
+    EXPECT_NEAR(open, last, 0.6f * kTick / kFade + 1e-5f);
+    last = open;
+  }
+  EXPECT_FLOAT_EQ(last, 0.2f);
+  EXPECT_DOUBLE_EQ(hand_over.voice_weight(), 1.0);
+  // Under the fail-safe the mix stays where it was (the channels hold and ease).
+  EXPECT_FLOAT_EQ(hand_over.step(DriveSource::kFailSafe, open_at(0.5f), open_at(0.9f), now)[Signal::kOpen], 0.2f);
+  now += kTick;
+  // The face returns: back to the video in 150 ms.
+  const std::int64_t back = now;
+  for (; now < back + kFade - kTick; now += kTick)
+    EXPECT_LT(hand_over.step(DriveSource::kVideo, open_at(0.6f), open_at(0.9f), now)[Signal::kOpen], 0.6f);
+  for (; now <= back + kFade; now += kTick) hand_over.step(DriveSource::kVideo, open_at(0.6f), open_at(0.9f), now);
+  EXPECT_FLOAT_EQ(hand_over.step(DriveSource::kVideo, open_at(0.6f), open_at(0.9f), now)[Signal::kOpen], 0.6f);
+  EXPECT_DOUBLE_EQ(hand_over.voice_weight(), 0.0);
+}
+
+TEST(ChannelBank, TheVoiceDrivesLikeAFaceAndItsLossIsTheFailSafe) {
+  const ChannelSpec spec = open_channel();
+  const SafetySettings safety{.hold_ns = 250 * kMs, .ease_ns = 500 * kMs};
+  ChannelBank bank({&spec, 1}, safety);
+  std::int64_t now = 0;
+  for (; now < 1000 * kMs; now += kFrameNs) bank.step(open_at(0.9f), {.tracked = true, .now_ns = now});
+  // The face is lost, the voice drives: no hold, no ease, the voice's values.
+  for (; now < 2000 * kMs; now += kFrameNs) {
+    bank.step(open_at(0.5f), {.tracked = false, .voice = true, .now_ns = now});
+    EXPECT_FALSE(bank.fail_safe_active());
+  }
+  EXPECT_DOUBLE_EQ(bank.values()[0], 1500);
+  // The sound goes too: the fail-safe as ever, hold then ease to neutral within hold + ease.
+  const std::int64_t lost_at = now - kFrameNs;
+  std::int64_t neutral_at = -1;
+  for (; now < lost_at + 5000 * kMs && neutral_at < 0; now += kFrameNs)
+    if (bank.step(open_at(0), {.tracked = false, .now_ns = now})[0] == 1200) neutral_at = now - lost_at;
+  ASSERT_GE(neutral_at, 0);
+  EXPECT_NEAR(static_cast<double>(neutral_at), static_cast<double>(safety.hold_ns + safety.ease_ns), kFrameNs);
+}
+
+TEST(HandOver, StepAllocatesNothing) {
+  HandOver hand_over(150 * kMs);
+  test::count_allocations_on_this_thread(true);
+  const long before = test::allocation_count();
+  for (int frame = 0; frame < 1000; ++frame)
+    hand_over.step(static_cast<DriveSource>(frame / 100 % 3), open_at(0.5f), open_at(0.2f), frame * kFrameNs);
   const long allocations = test::allocation_count() - before;
   test::count_allocations_on_this_thread(false);
   EXPECT_EQ(allocations, 0);

@@ -532,7 +532,7 @@ TEST_F(RunTest, RecordWritesCompleteLinesWithTheProcessColumns) {
   std::getline(lines, line);
   const std::vector<std::string> header = split(line);
   // The columns of `lipdrive process`, then the capture time.
-  EXPECT_EQ(line, measures_csv_header(false) + ",capture_time_ns");
+  EXPECT_EQ(line, measures_csv_header(false) + ",drive,capture_time_ns");
   int rows = 0, tracked = 0;
   std::int64_t last_capture = 0;
   bool ordered = true;

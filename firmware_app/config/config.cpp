@@ -491,6 +491,29 @@ void read_timecode(Section timecode, Config& config) {
   timecode.reject_unknown_keys();
 }
 
+void read_voice(Section voice, Config& config) {
+  Config::Voice& v = config.voice;
+  v.enabled = voice.boolean("enabled", v.enabled);
+  v.model = voice.string("model", "");
+  v.input = voice.one_of("input", "sim", {"sim", "alsa"}) == "alsa" ? Config::Voice::Input::kAlsa
+                                                                    : Config::Voice::Input::kSim;
+  const int sample_rate = voice.integer("sample_rate", v.alsa.sample_rate, 8000, 48'000);
+  read_alsa_input(voice, sample_rate, v.alsa);
+  v.crossfade_ms = voice.integer("crossfade_ms", v.crossfade_ms, 0, 2000);
+  v.audio_timeout_ms = voice.integer("audio_timeout_ms", v.audio_timeout_ms, 20, 5000);
+  voice.reject_unknown_keys();
+  if (!v.enabled) return;
+  if (v.model.empty()) voice.fail("model", "must name the performer's voice model (.lpv, `lipdrive voice train`)");
+  existing(voice, "model", v.model, "voice model file");
+  if (v.input == Config::Voice::Input::kSim) {
+    if (config.camera.type != Config::Camera::Type::kSim)
+      voice.fail("input", "\"sim\" plays the simulated camera's clip: [camera] type must be \"sim\"");
+    if (config.camera.sim.replay_rate > 0 || !config.camera.sim.real_time)
+      voice.fail("input",
+                 "\"sim\" plays the clip's sound at its own rate: [camera] needs real_time = true and no replay_fps");
+  }
+}
+
 void read_osc_control(Section control, Config& config) {
   Config::OscControl& c = config.osc_control;
   c.enabled = control.boolean("enabled", c.enabled);
@@ -603,6 +626,7 @@ Config load_config(const fs::path& file) {
   read_osc_control(top.table("osc_control"), config);
   read_monitor(top.table("monitor"), config);
   read_timecode(top.table("timecode"), config);
+  read_voice(top.table("voice"), config);
   top.reject_unknown_keys();
   return config;
 }

@@ -158,6 +158,20 @@ struct Config {
     SimulatedLtcOptions sim{.sample_rate = 48000, .start = {10, 0, 0, 0}};
   } timecode;
 
+  /// [voice]: the performer's voice drives the mouth while the face is lost (docs/voice.md).
+  struct Voice {
+    bool enabled = false;
+    std::filesystem::path model;  // the performer's voice model (.lpv, `lipdrive voice train`)
+    /// The microphone: a sound card input, or the sound of the simulated camera's clip played
+    /// in step with its video.
+    enum class Input { kSim, kAlsa };
+    Input input = Input::kSim;
+    /// The sound card's device and channel; its sample_rate is either input's.
+    AlsaCaptureOptions alsa{.sample_rate = 16000, .period_frames = 160, .must_open = false};
+    int crossfade_ms = 150;      // video <-> voice
+    int audio_timeout_ms = 200;  // no sound for this long: the voice is gone (the fail-safe drives)
+  } voice;
+
   /// [osc_control]: remote commands over OSC (docs/osc.md).
   struct OscControl {
     bool enabled = false;

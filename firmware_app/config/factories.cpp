@@ -7,8 +7,10 @@
 #endif
 #include "core/model_format.hpp"
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 #include "sim/ltc_generator.hpp"
+#include "sim/simulated_audio.hpp"
 #include "sim/simulated_camera.hpp"
 
 #include <fmt/format.h>
@@ -19,7 +21,8 @@ namespace lipdrive {
 namespace {
 
 /// The camera of one configuration table ("camera" or "side_camera", for messages).
-std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Config& config, std::string_view table) {
+std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Config& config, std::string_view table,
+                                         ReplayClock* clock = nullptr) {
   if (camera.type == Config::Camera::Type::kV4l2) return std::make_unique<V4l2Camera>(camera.v4l2);
 #ifdef LIPDRIVE_HAVE_LIBCAMERA
   if (camera.type == Config::Camera::Type::kLibcamera) {
@@ -33,7 +36,7 @@ std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Con
   }
 #endif
   try {
-    return std::make_unique<SimulatedCamera>(camera.sim);
+    return std::make_unique<SimulatedCamera>(camera.sim, clock);
   } catch (const SourceError& e) {
     throw ConfigError(fmt::format("{}: key {}.input: {}", config.file.string(), table, e.what()));
   }
@@ -51,7 +54,9 @@ std::unique_ptr<AudioSource> make_ltc_input(const Config::Timecode& timecode) {
 
 }  // namespace
 
-std::unique_ptr<FrameSource> make_source(const Config& config) { return make_camera(config.camera, config, "camera"); }
+std::unique_ptr<FrameSource> make_source(const Config& config, ReplayClock* clock) {
+  return make_camera(config.camera, config, "camera", clock);
+}
 
 std::unique_ptr<SideCamera> make_side_camera(const Config& config) {
   if (!config.side_camera) return nullptr;
@@ -68,6 +73,53 @@ std::unique_ptr<TimecodeSource> make_timecode(const Config& config) {
     case Config::Timecode::Source::kLtc: return std::make_unique<LtcTimecode>(make_ltc_input(timecode), timecode.rate);
   }
   return nullptr;
+}
+
+std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s) {
+  const Config::Voice& voice = config.voice;
+  if (!voice.enabled) return nullptr;
+  const std::string video_only = "the drive follows the video alone";
+  VoiceModel model;
+  try {
+    model = load_voice_model_file(voice.model);
+  } catch (const CommandError& e) {
+    spdlog::error("voice: {}; {}", e.what(), video_only);
+    return nullptr;
+  }
+  const int rate = voice.alsa.sample_rate;
+  if (model.features.sample_rate != rate) {
+    spdlog::error(
+        "voice: {}: the model was trained on sound at {} Hz, the input delivers {} Hz (voice.sample_rate); {}",
+        voice.model.string(), model.features.sample_rate, rate, video_only);
+    return nullptr;
+  }
+  std::unique_ptr<AudioSource> input;
+  if (voice.input == Config::Voice::Input::kSim) {
+    try {
+      input = std::make_unique<SimulatedClipAudio>(
+          SimulatedAudioOptions{
+              .clip = config.camera.sim.input, .sample_rate = rate, .block_frames = rate / 100, .loop_s = loop_s},
+          clock);
+    } catch (const AudioSourceError& e) {
+      spdlog::error("voice: {}; {}", e.what(), video_only);
+      return nullptr;
+    }
+  } else {
+    auto capture = std::make_unique<AlsaCapture>(voice.alsa);
+    if (!capture->is_open())
+      spdlog::error("voice input {}: {}; {} until it opens", capture->describe(), capture->reopen_error(), video_only);
+    input = std::move(capture);
+  }
+  try {
+    auto room = std::make_unique<VoiceRoom>(std::move(input), model);
+    spdlog::info("{}, model {} (delay {:.0f} ms: look-ahead {:.0f} ms + half the analysis window)", room->describe(),
+                 voice.model.string(), model.delay_s() * 1e3,
+                 1e3 * model.context.lookahead * model.features.hop / model.features.sample_rate);
+    return room;
+  } catch (const std::exception& e) {
+    spdlog::error("voice: {}: {}; {}", voice.model.string(), e.what(), video_only);
+    return nullptr;
+  }
 }
 
 PerformerProfile load_performer(const Config& config) {
@@ -96,24 +148,27 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
                    config.performer.name, model.file.string());
   }
   try {
-    return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit,
-                                            files.predictor(config.tracker.predictor), identity);
+    return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit, files.predictor(config.tracker.predictor),
+                                            identity);
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }
 }
 
 void check_audio_inputs(const Config& config) {
-  const Config::Timecode& timecode = config.timecode;
-  if (timecode.source == Config::Timecode::Source::kLtc && timecode.input == Config::Timecode::Input::kAlsa) {
-    AlsaCaptureOptions probe = timecode.alsa;
-    probe.must_open = true;
+  const auto probe = [&config](AlsaCaptureOptions options, std::string_view key) {
+    options.must_open = true;
     try {
-      AlsaCapture capture(probe);
+      AlsaCapture capture(options);
     } catch (const AudioSourceError& e) {
-      throw ConfigError(fmt::format("{}: key timecode.device: {}", config.file.string(), e.what()));
+      throw ConfigError(fmt::format("{}: key {}: {}", config.file.string(), key, e.what()));
     }
-  }
+  };
+  const Config::Timecode& timecode = config.timecode;
+  if (timecode.source == Config::Timecode::Source::kLtc && timecode.input == Config::Timecode::Input::kAlsa)
+    probe(timecode.alsa, "timecode.device");
+  if (config.voice.enabled && config.voice.input == Config::Voice::Input::kAlsa)
+    probe(config.voice.alsa, "voice.device");
 }
 
 }  // namespace lipdrive

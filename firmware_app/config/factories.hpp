@@ -10,13 +10,24 @@
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/daemon/side_camera.hpp"
 #include "firmware_app/daemon/timecode_source.hpp"
+#include "firmware_app/daemon/voice_room.hpp"
+#include "sim/replay_clock.hpp"
 
 #include <memory>
 
 namespace lipdrive {
 
-/// The configured camera. A recording that cannot be opened throws ConfigError.
-std::unique_ptr<FrameSource> make_source(const Config& config);
+/// The configured camera. A recording that cannot be opened throws ConfigError. `clock` (not
+/// owned, outlives the camera): the simulated camera's replay timeline, shared with the
+/// simulated microphone of [voice] input = "sim".
+std::unique_ptr<FrameSource> make_source(const Config& config, ReplayClock* clock = nullptr);
+
+/// The [voice] room, or nullptr when it is not enabled or cannot run: a voice model that
+/// cannot be loaded or was trained for another sample rate, or a clip without sound, is logged
+/// naming the file and the daemon drives from the video alone. A sound card that cannot be
+/// opened yet is logged and retried (video only meanwhile). `clock` and `loop_s`: the
+/// simulated camera's timeline and its replay's length when it loops (else 0), for input "sim".
+std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s);
 
 /// The [side_camera], or nullptr when it is not enabled.
 std::unique_ptr<SideCamera> make_side_camera(const Config& config);
@@ -24,7 +35,7 @@ std::unique_ptr<SideCamera> make_side_camera(const Config& config);
 /// The [timecode] source, or nullptr when frames are not stamped.
 std::unique_ptr<TimecodeSource> make_timecode(const Config& config);
 
-/// Opens, once, the audio inputs the configuration names (an ALSA device for LTC), which the
+/// Opens, once, the audio inputs the configuration names (ALSA devices for LTC and the voice), which the
 /// daemon itself does not insist on at start (a device may appear later): for
 /// `lipdrive check-config`. Throws ConfigError naming the file, the key and the device.
 void check_audio_inputs(const Config& config);

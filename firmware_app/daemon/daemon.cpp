@@ -2,6 +2,7 @@
 
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/daemon/status_word.hpp"
 #include "firmware_app/monitor/monitor.hpp"
 #include "firmware_app/outputs/make_outputs.hpp"
 
@@ -39,7 +40,14 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
   settings.safety = config_.safety;
   settings.neutral_frames = config_.performer.neutral_frames;
   settings.model_mismatch = model_mismatch(config_, profile_, files);
-  std::unique_ptr<FrameSource> source = make_source(config_);
+  settings.voice_crossfade = std::chrono::milliseconds(config_.voice.crossfade_ms);
+  settings.voice_timeout = std::chrono::milliseconds(config_.voice.audio_timeout_ms);
+  // The clip's sound keeps to the simulated camera's timeline.
+  const bool sim_voice = config_.voice.enabled && config_.voice.input == Config::Voice::Input::kSim;
+  std::unique_ptr<FrameSource> source = make_source(config_, sim_voice ? &replay_clock_ : nullptr);
+  const double loop_s =
+      sim_voice && config_.camera.sim.loop ? static_cast<const SimulatedCamera&>(*source).duration_s() : 0.0;
+  voice_ = make_voice_room(config_, &replay_clock_, loop_s);
   timecode_ = make_timecode(config_);
   recorder_ =
       std::make_unique<TakeRecorder>(source->describe(), std::chrono::milliseconds(config_.recording.flush_interval_ms),
@@ -55,6 +63,7 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
     spdlog::info("timecode: {}", timecode_->describe());
   }
   pipeline_->set_profile(profile_);
+  if (voice_) pipeline_->set_voice(*voice_);
   outputs_ = make_outputs(config_, control_);
   for (const auto& output : outputs_) {
     pipeline_->add_output(*output);
@@ -147,14 +156,18 @@ void Daemon::report_status() {
     if (!output->healthy()) warnings += fmt::format(", {} failing", output->describe());
   if (timecode_)
     if (const std::string problem = timecode_->problem(); !problem.empty()) warnings += ", " + problem;
+  if (voice_)
+    if (const std::string problem = voice_->problem(); !problem.empty()) warnings += ", " + problem;
+  DriveFrame drive;
+  pipeline_->latest_drive(drive);
   const std::string timecode =
       latest.timecode >= 0 && timecode_
           ? fmt::format(", timecode {}", format_frame(latest.timecode, timecode_->rate()).view())
           : std::string();
-  const std::string line =
-      fmt::format("{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, {}, {}x{}, dropped {}{}{}{}", fps,
-                  s.processed_median_ms, s.processed_p99_ms, mouth, latest.width, latest.height, s.dropped, timecode,
-                  s.connected ? "" : ", camera disconnected", warnings);
+  const std::string line = fmt::format(
+      "{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, drive {}, {}, {}x{}, dropped {}{}{}{}", fps,
+      s.processed_median_ms, s.processed_p99_ms, drive_source_name(status_source(drive.status)), mouth, latest.width,
+      latest.height, s.dropped, timecode, s.connected ? "" : ", camera disconnected", warnings);
   spdlog::info("{}", line);
   sd_notifyf(0, "STATUS=%s", line.c_str());
 }
@@ -173,6 +186,11 @@ void Daemon::print_stats() const {
       fmt::print(stderr, "capture->wire latency, {}: median {:.2f} ms, p99 {:.2f} ms ({} frames)\n", output->describe(),
                  wire->quantile_ms(0.5), wire->quantile_ms(0.99), wire->count());
   }
+  if (voice_)
+    fmt::print(stderr,
+               "sound block->output latency while the voice drives: median {:.2f} ms, p99 {:.2f} ms ({} drive frames; "
+               "the model's look-ahead comes on top)\n",
+               s.voice_median_ms, s.voice_p99_ms, s.voice_frames);
   fmt::print(stderr, "fps: {:.1f} ({} frames in {:.2f} s)\n",
              s.seconds > 0 ? static_cast<double>(s.processed) / s.seconds : 0.0, s.processed, s.seconds);
 }

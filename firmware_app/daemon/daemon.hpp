@@ -5,9 +5,11 @@
 // Thread model: the main thread makes every call. Every part is declared after what its
 // threads use, so the members' own destruction order is the safe one: the monitor's threads are
 // joined first (they read the pipeline, the outputs and the preview feed, and write the drive
-// control), then the pipeline's (they use the feed, the outputs, the recorder and the drive control), then the outputs
-// and their threads go (the Modbus server writes the drive control), the recorder, and the
-// drive control last. A constructor that throws half-way unwinds in the same order.
+// control), then the pipeline's (they use the feed, the outputs, the recorder, the voice room
+// and the drive control), then the outputs and their threads go (the Modbus server writes the
+// drive control), the recorder, the voice room's thread is joined (its simulated microphone
+// reads the replay clock), and the drive control and the replay clock last. A constructor that
+// throws half-way unwinds in the same order.
 #pragma once
 
 #include "firmware_app/config/config.hpp"
@@ -18,7 +20,9 @@
 #include "firmware_app/daemon/preview_feed.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
 #include "firmware_app/daemon/timecode_source.hpp"
+#include "firmware_app/daemon/voice_room.hpp"
 #include "firmware_app/outputs/output.hpp"
+#include "sim/replay_clock.hpp"
 
 #include <chrono>
 #include <cstdint>
@@ -78,9 +82,11 @@ class Daemon {
 
   Config config_;
   PerformerProfile profile_;
+  ReplayClock replay_clock_;  // the simulated camera's and the simulated microphone's timeline
   DriveControl
       control_;  // written by the Modbus server's thread, the GPIO buttons and the OSC control, read by the pipeline
   std::unique_ptr<TimecodeSource> timecode_;  // read by the pipeline's processing thread
+  std::unique_ptr<VoiceRoom> voice_;          // [voice]: read by the pipeline's threads
   std::unique_ptr<TakeRecorder> recorder_;
   std::unique_ptr<OscControl> osc_control_;       // its thread writes control_
   std::vector<std::unique_ptr<Output>> outputs_;  // their threads use control_

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "core/drive_signals.hpp"
+#include "core/drive_source.hpp"
 #include "core/mouth_measures.hpp"
 #include "core/viseme_weights.hpp"
 
@@ -24,6 +25,8 @@ struct FrameResult {
   double protrusion_side = 0;  // side-view protrusion over the nose length, when side_used
   int width = 0, height = 0;   // frame size in pixels
   std::int32_t timecode = -1;  // frame number (core/timecode.hpp) at capture; -1: not stamped
+  // Who drives at this frame: the tracked face, else the voice while it is heard, else the fail-safe.
+  DriveSource drive = DriveSource::kFailSafe;
 };
 
 /// Sees every result on the processing thread, in order (the take recorder, tests). push()

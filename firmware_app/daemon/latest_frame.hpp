@@ -112,6 +112,9 @@ class Published {
     return before / 2;
   }
 
+  /// The latest version (0: nothing published yet), without copying the value.
+  std::uint32_t version() const { return sequence_.load(std::memory_order_acquire) / 2; }
+
   /// Waits until a version newer than `seen` is published or `timeout` passes.
   void wait_newer(std::uint32_t seen, std::chrono::nanoseconds timeout) {
     const std::uint32_t sequence = sequence_.load(std::memory_order_acquire);

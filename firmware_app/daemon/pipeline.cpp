@@ -28,6 +28,7 @@ Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FramePro
       settings_(std::move(settings)),
       control_(control),
       channels_(settings_.channels, settings_.safety),
+      hand_over_(std::chrono::nanoseconds(settings_.voice_crossfade).count()),
       // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
       max_result_age_ns_(3 * frame_period_ns(capture_.frame_rate())) {}
 
@@ -35,6 +36,7 @@ Pipeline::~Pipeline() { stop(); }
 
 void Pipeline::set_profile(const PerformerProfile& profile) {
   profile_ = profile;
+  output_profile_ = profile;
   calibrated_ = profile.calibrated;
 }
 
@@ -94,6 +96,10 @@ void Pipeline::process(const CapturedFrame& frame) {
   result.height = frame.gray.rows;
   result.processed_time_ns = monotonic_ns();
   processed_latency_.add(result.processed_time_ns - result.capture_time_ns);
+  VoiceState voice;
+  bool heard = false;
+  voice_state(result.processed_time_ns, voice, heard);
+  result.drive = select_source(result.tracked, heard);
 
   if (was_tracked_ && !result.tracked) lost_track_.fetch_add(1, std::memory_order_relaxed);
   was_tracked_ = result.tracked;
@@ -147,7 +153,7 @@ void Pipeline::ping_watchdog(std::int64_t now_ns) {
 
 // ---------------------------------------------------------------- output thread
 
-std::uint16_t Pipeline::status(bool tracked, bool side_used, bool connected, bool enabled) const {
+std::uint16_t Pipeline::status(bool tracked, bool side_used, bool connected, bool enabled, DriveSource source) const {
   return status_word({.tracking = tracked,
                       .calibrated = calibrated_.load(std::memory_order_relaxed),
                       .fail_safe = channels_.fail_safe_active(),
@@ -155,19 +161,52 @@ std::uint16_t Pipeline::status(bool tracked, bool side_used, bool connected, boo
                       .recording = recorder_ != nullptr && recorder_->recording(),
                       .outputs_enabled = enabled,
                       .camera_connected = connected,
-                      .model_mismatch = settings_.model_mismatch});
+                      .model_mismatch = settings_.model_mismatch,
+                      .source = source});
+}
+
+std::uint32_t Pipeline::voice_state(std::int64_t now_ns, VoiceState& state, bool& heard) const {
+  heard = false;
+  if (!voice_) return 0;
+  const std::uint32_t version = voice_->latest(state);
+  heard = version > 0 && now_ns - state.heard_ns <= std::chrono::nanoseconds(settings_.voice_timeout).count();
+  return version;
+}
+
+DriveSignals Pipeline::voice_signals(const VoiceState& state) {
+  // A calibrate command re-centres the profile on the processing thread; the voice follows it.
+  if (const std::uint32_t version = recentred_.version(); version != output_profile_version_) {
+    output_profile_version_ = version;
+    recentred_.read(output_profile_);
+  }
+  MouthMeasures measures;
+  measures.open = state.measures[static_cast<std::size_t>(VoiceTarget::kOpen)];
+  measures.width_fit = state.measures[static_cast<std::size_t>(VoiceTarget::kWidth)];
+  measures.protrusion_3d = state.measures[static_cast<std::size_t>(VoiceTarget::kProtrusion)];
+  measures.seal = state.measures[static_cast<std::size_t>(VoiceTarget::kSeal)];
+  DriveSignals signals = drive_signals(measures, {}, output_profile_);
+  signals[Signal::kTracking] = 0;
+  return signals;
 }
 
 void Pipeline::output_loop() {
   FrameResult result;
   DriveFrame frame;
-  std::uint32_t seen = 0;
+  VoiceState voice;
+  DriveSignals voice_drive;
+  std::uint32_t seen = 0, voice_seen = 0;
+  DriveSource source = DriveSource::kFailSafe;
   const auto tick = std::chrono::nanoseconds(settings_.output_tick);
   std::uint64_t processed_before = 0;
   std::int64_t fps_since_ns = monotonic_ns();
   bool connected = true, enabled = true;
   while (!stop_outputs_.load(std::memory_order_relaxed)) {
-    results_.wait_newer(seen, tick);
+    // While the voice drives, each new prediction is a drive frame; a returning face still
+    // shows within one prediction (10 ms).
+    if (source == DriveSource::kVoice)
+      voice_->wait_newer(voice_seen, tick);
+    else
+      results_.wait_newer(seen, tick);
     const std::uint32_t version = results_.read(result);
     frame.new_result = version != seen;
     seen = version;
@@ -181,8 +220,18 @@ void Pipeline::output_loop() {
     // delivering, not when the processing thread next publishes: the hold time starts there.
     connected = capture_.connected();
     const bool tracked = result.tracked && connected && now - result.capture_time_ns <= max_result_age_ns_;
-    channels_.step(result.signals,
-                   {.tracked = tracked, .enabled = enabled, .now_ns = now, .frame_time_ns = result.capture_time_ns});
+    bool heard = false;
+    const std::uint32_t voice_version = voice_state(now, voice, heard);
+    source = select_source(tracked, heard);
+    const bool new_voice = source == DriveSource::kVoice && voice_version != voice_seen;
+    if (new_voice) voice_drive = voice_signals(voice);
+    voice_seen = voice_version;
+    const DriveSignals& signals = hand_over_.step(source, result.signals, voice_drive, now);
+    channels_.step(signals, {.tracked = tracked,
+                             .voice = source == DriveSource::kVoice,
+                             .enabled = enabled,
+                             .now_ns = now,
+                             .frame_time_ns = source == DriveSource::kVoice ? voice.heard_ns : result.capture_time_ns});
 
     // Frames per second over the last second or so.
     if (now - fps_since_ns >= 1'000'000'000) {
@@ -192,21 +241,22 @@ void Pipeline::output_loop() {
       processed_before = processed;
       fps_since_ns = now;
     }
-    frame.status = status(tracked, result.side_used, connected, enabled);
+    frame.status = status(tracked, result.side_used, connected, enabled, source);
     frame.sequence = result.sequence;
     frame.capture_time_ns = result.capture_time_ns;
-    frame.signals = tracked ? result.signals : DriveSignals{};
+    frame.signals = source == DriveSource::kFailSafe ? DriveSignals{} : signals;
     frame.timecode = version > 0 ? result.timecode : -1;  // before the first result the seqlock holds zeros
     if (timecode_) frame.timecode_rate = timecode_->rate();
     frame.latency_ms = static_cast<float>(ms(result.processed_time_ns - result.capture_time_ns));
     fill(frame, now);
     for (Output* output : outputs_) output->publish(frame);
+    if (new_voice) voice_latency_.add(monotonic_ns() - voice.heard_ns);
   }
   // The last thing every output sees: the neutral pose.
   channels_.reset_to_neutral();
   frame.new_result = false;
   frame.signals = DriveSignals{};
-  frame.status = status(false, false, connected, enabled);
+  frame.status = status(false, false, connected, enabled, DriveSource::kFailSafe);
   fill(frame, monotonic_ns());
   for (Output* output : outputs_) output->publish_last(frame);
 }
@@ -233,6 +283,9 @@ PipelineStats Pipeline::stats() const {
   s.processed_p99_ms = processed_latency_.quantile_ms(0.99);
   s.output_median_ms = output_latency_.quantile_ms(0.5);
   s.output_p99_ms = output_latency_.quantile_ms(0.99);
+  s.voice_median_ms = voice_latency_.quantile_ms(0.5);
+  s.voice_p99_ms = voice_latency_.quantile_ms(0.99);
+  s.voice_frames = voice_latency_.count();
   const std::int64_t end_ns = stop_ns_ > 0 ? stop_ns_.load() : monotonic_ns();
   s.seconds = start_ns_ > 0 ? static_cast<double>(end_ns - start_ns_) / 1e9 : 0;
   s.connected = capture_.connected();

@@ -5,9 +5,13 @@
 //   processing thread  takes the newest frame; tracker, fit, measures (FrameProcessor), the
 //                      side camera's protrusion, the performer's calibration -> DriveSignals;
 //                      publishes a FrameResult; acts on calibrate requests
-//   output thread      steps the drive channels (smoothing, ranges, fail-safe, slew) on every
-//                      new result and at least every output_tick, assembles the status word
-//                      and hands the DriveFrame to every output
+//   output thread      picks the source that drives (the tracked face, else the voice of the
+//                      VoiceRoom while it is heard, else the fail-safe) and cross-fades
+//                      between video and voice (core/drive_source.hpp); steps the drive
+//                      channels (smoothing, ranges, fail-safe, slew) on every new result (every
+//                      new voice prediction while the voice drives) and at least every
+//                      output_tick, assembles the status word and hands the DriveFrame to
+//                      every output
 //
 // The output thread stays because the face detector holds the processing thread for tens of ms
 // per frame while it re-acquires a lost face, and the fail-safe must still tick every 20 ms.
@@ -19,6 +23,7 @@
 
 #include "core/calibration.hpp"
 #include "core/drive_channels.hpp"
+#include "core/drive_source.hpp"
 #include "drivers/frame_source.hpp"
 #include "firmware_app/daemon/capture.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
@@ -29,6 +34,7 @@
 #include "firmware_app/daemon/side_camera.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
 #include "firmware_app/daemon/timecode_source.hpp"
+#include "firmware_app/daemon/voice_room.hpp"
 #include "firmware_app/outputs/output.hpp"
 
 #include <atomic>
@@ -53,6 +59,8 @@ struct PipelineSettings {
   std::chrono::milliseconds output_tick{20};
   int neutral_frames = 30;      // tracked frames of a calibrate command's neutral capture
   bool model_mismatch = false;  // reported in the status word (kStatusModelMismatch)
+  /// [voice]: the cross-fade between video and voice; no sound for voice_timeout: the voice is gone.
+  std::chrono::milliseconds voice_crossfade{150}, voice_timeout{200};
 };
 
 struct PipelineStats {
@@ -63,8 +71,12 @@ struct PipelineStats {
   std::uint64_t corrupt = 0;                             // frames the source could not decode
   double processed_median_ms = 0, processed_p99_ms = 0;  // capture -> processed
   double output_median_ms = 0, output_p99_ms = 0;        // capture -> output thread
-  double seconds = 0;                                    // since start()
-  bool connected = true;                                 // the source currently delivers
+  /// While the voice drives: the end of the newest sound block -> the drive frame written to the
+  /// outputs (serial and GPIO write inline); the model's look-ahead comes on top.
+  double voice_median_ms = 0, voice_p99_ms = 0;
+  std::uint64_t voice_frames = 0;  // drive frames the voice drove
+  double seconds = 0;              // since start()
+  bool connected = true;           // the source currently delivers
 };
 
 class Pipeline {
@@ -91,6 +103,8 @@ class Pipeline {
   void set_side_camera(std::unique_ptr<SideCamera> side) { side_ = std::move(side); }
   /// The timecode every frame is stamped with (processing thread).
   void set_timecode(const TimecodeSource& timecode) { timecode_ = &timecode; }
+  /// [voice]: the voice that drives while the face is lost (read by both threads).
+  void set_voice(VoiceRoom& voice) { voice_ = &voice; }
   /// Where the monitor's previews go (processing thread, at the feed's own rate).
   void set_preview(PreviewFeed& preview) { preview_ = &preview; }
   /// The performer profile the processing thread applies.
@@ -127,7 +141,11 @@ class Pipeline {
   /// feed it; the last of settings_.neutral_frames re-centres the profile on them.
   void calibrate_step(const FrameResult& result);
   /// Output thread: the status word of the drive frame being assembled.
-  std::uint16_t status(bool tracked, bool side_used, bool connected, bool enabled) const;
+  std::uint16_t status(bool tracked, bool side_used, bool connected, bool enabled, DriveSource source) const;
+  /// Either thread: the newest voice prediction and its version; `heard`: its sound is recent.
+  std::uint32_t voice_state(std::int64_t now_ns, VoiceState& state, bool& heard) const;
+  /// Output thread: the voice's measures as drive signals through the performer's profile.
+  DriveSignals voice_signals(const VoiceState& state);
   /// Completes a drive frame from the channel bank and publishes it for readers.
   void fill(DriveFrame& frame, std::int64_t now_ns);
   void ping_watchdog(std::int64_t now_ns);
@@ -142,6 +160,7 @@ class Pipeline {
   const TakeRecorder* recorder_ = nullptr;
   const TimecodeSource* timecode_ = nullptr;
   PreviewFeed* preview_ = nullptr;
+  VoiceRoom* voice_ = nullptr;
 
   Published<FrameResult> results_;
   Published<DriveFrame> drive_frames_;
@@ -157,9 +176,12 @@ class Pipeline {
   std::int64_t last_watchdog_ns_ = 0;
   bool was_tracked_ = false;
 
-  ChannelBank channels_;            // output thread's
+  ChannelBank channels_;             // output thread's
+  HandOver hand_over_;               // output thread's
+  PerformerProfile output_profile_;  // output thread's: the voice's measures -> signals
+  std::uint32_t output_profile_version_ = 0;
   std::int64_t max_result_age_ns_;  // older results do not count as tracking
-  LatencyHistogram processed_latency_, output_latency_;
+  LatencyHistogram processed_latency_, output_latency_, voice_latency_;
 
   std::atomic<std::uint64_t> processed_{0}, tracked_{0}, lost_track_{0};
   std::atomic<bool> finished_{false};

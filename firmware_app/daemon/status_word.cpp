@@ -15,7 +15,14 @@ std::uint16_t status_word(const DriveState& state) {
   set(state.outputs_enabled, kStatusOutputsEnabled);
   set(state.camera_connected, kStatusCameraConnected);
   set(state.model_mismatch, kStatusModelMismatch);
+  word |= static_cast<std::uint16_t>(static_cast<unsigned>(state.source) << kStatusSourceShift);
   return word;
+}
+
+DriveSource status_source(std::uint16_t status) {
+  const unsigned source = (status & kStatusSourceMask) >> kStatusSourceShift;
+  return source <= static_cast<unsigned>(DriveSource::kFailSafe) ? static_cast<DriveSource>(source)
+                                                                 : DriveSource::kFailSafe;
 }
 
 }  // namespace lipdrive

@@ -4,6 +4,8 @@
 // DriveFrame::status; outputs only read it.
 #pragma once
 
+#include "core/drive_source.hpp"
+
 #include <cstdint>
 
 namespace lipdrive {
@@ -20,6 +22,11 @@ enum StatusBit : std::uint16_t {
   kStatusModelMismatch = 1 << 7,    // performer and model differ by two mouth-height classes
 };
 
+/// Bits 8-9 of the status word: the source that drives (DriveSource: 0 video, 1 voice,
+/// 2 fail-safe).
+inline constexpr int kStatusSourceShift = 8;
+inline constexpr std::uint16_t kStatusSourceMask = 3 << kStatusSourceShift;
+
 /// What the status word reports, one flag per bit.
 struct DriveState {
   bool tracking = false;
@@ -30,8 +37,11 @@ struct DriveState {
   bool outputs_enabled = false;
   bool camera_connected = false;
   bool model_mismatch = false;
+  DriveSource source = DriveSource::kFailSafe;
 };
 
 std::uint16_t status_word(const DriveState& state);
+/// The source a status word reports.
+DriveSource status_source(std::uint16_t status);
 
 }  // namespace lipdrive

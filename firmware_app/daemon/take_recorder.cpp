@@ -159,7 +159,7 @@ void TakeRecorder::drain() {
     const FrameResult& r = ring_[tail % kRingSize];
     append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr, r.visemes,
                             nullptr);
-    fmt::format_to(std::back_inserter(lines_), ",{}", r.capture_time_ns);
+    fmt::format_to(std::back_inserter(lines_), ",{},{}", drive_source_name(r.drive), r.capture_time_ns);
     if (timecode_rate_) {
       lines_.push_back(',');
       if (r.timecode >= 0) append_timecode(lines_, r.timecode, *timecode_rate_);
@@ -181,7 +181,7 @@ void TakeRecorder::append_header(const FrameResult* first) {
       fmt::format_to(std::back_inserter(lines_), "none");
     fmt::format_to(std::back_inserter(lines_), " at {} fps\n", rate_name(*timecode_rate_));
   }
-  fmt::format_to(std::back_inserter(lines_), "{},capture_time_ns{}\n", measures_csv_header(false),
+  fmt::format_to(std::back_inserter(lines_), "{},drive,capture_time_ns{}\n", measures_csv_header(false),
                  timecode_rate_ ? ",timecode" : "");
 }
 

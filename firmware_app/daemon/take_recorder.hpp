@@ -1,6 +1,7 @@
 // Take recording: every processed frame as one CSV row (the columns of `lipdrive process`
-// plus capture_time_ns, and the frame's timecode when a timecode source is configured; the
-// take then begins with a comment line naming the timecode of its first frame), written by a
+// plus drive (who drove at that frame: video, voice or fail-safe), capture_time_ns and, when a
+// timecode source is configured, the frame's timecode; the take then begins with a comment
+// line naming the timecode of its first frame), written by a
 // thread of its own so that slow or failing storage never holds up the pipeline or the
 // outputs.
 //

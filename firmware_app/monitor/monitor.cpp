@@ -366,6 +366,7 @@ std::string Monitor::state_json() {
       {"side_camera", side ? nlohmann::json{{"camera", side->describe()}, {"connected", side->connected()}}
                            : nlohmann::json(nullptr)},
       {"fps", drive.fps},
+      {"source", std::string(drive_source_name(status_source(drive.status)))},
       {"frames",
        {{"captured", s.captured},
         {"processed", s.processed},

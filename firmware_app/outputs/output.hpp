@@ -30,8 +30,9 @@ struct DriveFrame {
   float latency_ms = 0;              // capture -> processed of the newest result
   int channel_count = 0;
   std::array<double, kMaxChannels> values{};  // output units, ChannelBank order
-  /// The newest result's calibrated signals while it counts as tracked, else zero: for
-  /// outputs that describe the face rather than drive the figure (OSC's gestures).
+  /// The calibrated signals that drive (the tracked face's, the voice's or their cross-fade,
+  /// status_source()), zero under the fail-safe: for outputs that describe the face rather
+  /// than drive the figure (OSC's gestures).
   DriveSignals signals;
   std::int32_t timecode = -1;  // the newest result's (FrameResult::timecode); -1: none
   TimecodeRate timecode_rate = TimecodeRate::k25;
