@@ -740,6 +740,7 @@ TEST(MonitorState, AfterStopTheStateEqualsTheDaemonsCounters) {
   EXPECT_EQ(page["channels"][0]["value"].get<double>(), 0);
   EXPECT_EQ(page["channels"][1]["value"].get<double>(), 500);
   EXPECT_FALSE(page["status"]["tracking"].get<bool>());
+  EXPECT_EQ(page["source"], "fail-safe") << "who drives: the status word's source";
   EXPECT_EQ(page["monitor"]["refused"], 1);
 }
 
