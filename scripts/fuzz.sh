@@ -35,9 +35,10 @@ for target in "${targets[@]}"; do
   status=0
   "$binary" "$corpus" "tests/fuzz/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
     -max_len="$max_len" -print_final_stats=1 -artifact_prefix="$findings/" >"$log" 2>&1 || status=$?
+  # A target that fails before libFuzzer prints any statistics has none (and the run goes on).
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
-  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
-  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2 || true)
+  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2 || true)
   echo "fuzz_$target: ${seconds} s, ${execs:-?} executions, cov ${cov:-?}, ft ${ft:-?}, exit $status"
   if [ "$status" -ne 0 ]; then
     failed=1
