@@ -14,9 +14,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# The threaded tests: the pipeline's threads and hand-offs, every output kind, the Modbus
-# server and client, serial, reload and stop, kill -9 and restart.
-threaded=(test_pipeline test_modbus test_serial test_gpio test_daemon_outputs test_reload test_crash_restart)
+# The threaded tests: the pipeline's threads and hand-offs, every output kind (Modbus server
+# and client, serial, GPIO, DMX and OSC senders), the OSC control port, timecode and audio
+# capture, the monitor page, the daemon run end to end (outputs, show network, face faults),
+# reload and stop, kill -9 and restart, and the soak with every camera fault (shortened to
+# LIPDRIVE_SOAK_SECONDS).
+threaded=(test_pipeline test_modbus test_serial test_gpio test_osc test_dmx test_timecode test_audio_input
+  test_monitor test_daemon_outputs test_daemon_dmx test_daemon_osc test_daemon_timecode test_daemon_face_faults
+  test_reload test_crash_restart test_soak)
 # The tests CI runs under ASan + UBSan (asan-ci): every parser of outside input, the drivers,
 # the outputs (Modbus, serial, DMX, OSC, GPIO) and the numeric units; none of them has a
 # real-time bound that ASan's slower code could miss. Left to the full lane (asan): the
@@ -98,6 +103,8 @@ case "${1:-}" in
     build tsan "${generated[@]}" "${threaded[@]}"
     reports="$PWD/build-tsan/sanitizer-reports/report"
     export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$suppressions/tsan.supp:log_path=$reports"
+    # The soak's threads and faults for 20 s instead of a minute (tests/test_soak.cpp).
+    export LIPDRIVE_SOAK_SECONDS=20
     filter="^($(IFS='|'; echo "${threaded[*]}"))\$"
     run_tests tsan -R "$filter" "$@"
     ;;
