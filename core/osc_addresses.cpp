@@ -17,6 +17,12 @@ std::string channel_address(std::string_view channel) {
   return address;
 }
 
+std::string arkit_address(std::string_view arkit_name) {
+  std::string address("/");
+  address += arkit_name;
+  return address;
+}
+
 FaceOscGestures face_osc_gestures(const DriveSignals& signals) {
   const float open = std::clamp(signals[Signal::kOpen], 0.0f, 1.0f);
   const float width = std::clamp(signals[Signal::kWidth], 0.0f, 1.0f);

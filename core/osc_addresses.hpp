@@ -9,7 +9,8 @@
 //   /gesture/mouth/width f    FaceOSC's mouth gestures, in FaceOSC's ranges
 //   /gesture/mouth/height f
 //   /gesture/jaw f
-//   /<ARKit name> f           ARKit blendshape weights in [0, 1] under Apple's names
+//   /<ARKit name> f           the 52 ARKit blendshape weights in [0, 1] under Apple's names, in
+//                             Apple's order (core/arkit.hpp)
 // Control messages (to [osc_control]): Live Link Face's /RecordStart s i, /RecordStop,
 // /Slate s, /Take i, and /lipdrive/calibrate, /lipdrive/output_enable i.
 #pragma once
@@ -43,6 +44,9 @@ bool is_address_part(std::string_view name);
 
 /// "/lipdrive/<channel>".
 std::string channel_address(std::string_view channel);
+
+/// "/<ARKit name>", e.g. "/jawOpen".
+std::string arkit_address(std::string_view arkit_name);
 
 /// FaceOSC's mouth gestures from the calibrated signals, scaled into the ranges FaceOSC's own
 /// values take (distances in its tracker's model units: mouth width about 10..18, inner

@@ -179,10 +179,12 @@ TEST_F(ConfigTest, ChannelsAndOutputsLoad) {
                         "[[outputs.modbus_server]]\ntransport = \"rtu\"\ndevice = \"/dev/ttyS1\"\nbaud = 19200\n"
                         "parity = \"E\"\nunit_id = 7\n"
                         "[[outputs.serial]]\nmode = \"maestro\"\nservos = {{ jaw = 3 }}\n"
-                        "[[outputs.modbus_client]]\nchannels = [\"smile\", \"jaw\"]\nrate_hz = 20\n",
+                        "[[outputs.modbus_client]]\nchannels = [\"smile\", \"jaw\"]\nrate_hz = 20\n"
+                        "[[channels]]\nname = \"pucker\"\nsignal = \"arkit_mouthPucker\"\n",
                         kJawChannel));
   const Config config = load_config(file_);
-  ASSERT_EQ(config.channels.size(), 2u);
+  ASSERT_EQ(config.channels.size(), 3u);
+  EXPECT_EQ(config.channels[2].signal, arkit_signal(*arkit_index("mouthPucker")));
   EXPECT_EQ(config.channels[0].name, "jaw");
   EXPECT_EQ(config.channels[0].out_min, 1000);
   EXPECT_EQ(config.channels[0].neutral, 1100);

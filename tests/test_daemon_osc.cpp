@@ -2,6 +2,7 @@
 // the OSC control input: every drive frame arrives as one time-tagged bundle with the
 // documented addresses (docs/osc.md), the remote commands take effect (a take named by slate
 // and take, output enable, calibrate), and the capture -> received latency of the bundles.
+#include "core/arkit.hpp"
 #include "core/osc_addresses.hpp"
 #include "core/statistics.hpp"
 #include "daemon_process.hpp"
@@ -66,15 +67,15 @@ port = {}
   ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
   std::this_thread::sleep_for(3s);
 
-  // Every bundle: the documented addresses in the documented order and types.
-  const std::vector<std::pair<std::string, std::string>> expected = {
-      {"/lipdrive/frame", "i"},      {"/lipdrive/status", "i"},
-      {"/lipdrive/open", "f"},       {"/lipdrive/width", "f"},
-      {"/lipdrive/seal", "f"},       {"/found", "i"},
-      {"/gesture/mouth/width", "f"}, {"/gesture/mouth/height", "f"},
-      {"/gesture/jaw", "f"},         {"/jawOpen", "f"},
-      {"/mouthClose", "f"},          {"/mouthFunnel", "f"},
-      {"/mouthPucker", "f"}};
+  // Every bundle: the documented addresses in the documented order and types; the ARKit
+  // weights under Apple's 52 names in Apple's order.
+  std::vector<std::pair<std::string, std::string>> expected = {
+      {"/lipdrive/frame", "i"},      {"/lipdrive/status", "i"},          {"/lipdrive/open", "f"},
+      {"/lipdrive/width", "f"},      {"/lipdrive/seal", "f"},            {"/found", "i"},
+      {"/gesture/mouth/width", "f"}, {"/gesture/mouth/height", "f"},     {"/gesture/jaw", "f"}};
+  for (const std::string_view name : kArkitNames) expected.emplace_back(fmt::format("/{}", name), "f");
+  ASSERT_EQ(expected[9 + 17].first, "/jawOpen");
+  ASSERT_EQ(expected.back().first, "/tongueOut");
   auto bundles = capture.bundles();
   ASSERT_GT(bundles.size(), 120u) << daemon.log();
   EXPECT_TRUE(capture.loose_messages().empty()) << "everything travels in bundles";
@@ -94,7 +95,7 @@ port = {}
     }
     counters.push_back(static_cast<int>(bundle.messages[0].number));
     found |= bundle.messages[5].number == 1;
-    highest_jaw_open = std::max(highest_jaw_open, bundle.messages[9].number);
+    highest_jaw_open = std::max(highest_jaw_open, bundle.messages[9 + 17].number);
     latency_ms.push_back(static_cast<double>(unix_ns(bundle.received) - unix_ns(bundle.time_tag)) / 1e6);
   }
   EXPECT_TRUE(found) << "/found 1 while the face is tracked";

@@ -26,12 +26,19 @@ DriveSignals open_at(float value) {
   return s;
 }
 
-TEST(DriveSignals, NamesRoundTripAndFollowTheVisemes) {
+TEST(DriveSignals, NamesRoundTripAndFollowTheVisemesAndArkitNames) {
   for (int s = 0; s < kNumSignals; ++s)
     EXPECT_EQ(parse_signal(signal_name(static_cast<Signal>(s))), static_cast<Signal>(s));
+  EXPECT_EQ(signal_name(Signal::kOpen), "open");
+  EXPECT_EQ(signal_name(Signal::kSeal), "seal");
   for (int v = 0; v < kNumVisemes; ++v)
     EXPECT_EQ(signal_name(viseme_signal(v)), "viseme_" + std::string(kVisemeNames[static_cast<std::size_t>(v)]));
+  for (int a = 0; a < kNumArkit; ++a)
+    EXPECT_EQ(signal_name(arkit_signal(a)), "arkit_" + std::string(kArkitNames[static_cast<std::size_t>(a)]));
+  EXPECT_EQ(parse_signal("arkit_jawOpen"), arkit_signal(17));
   EXPECT_FALSE(parse_signal("mouth"));
+  EXPECT_FALSE(parse_signal("arkit_"));
+  EXPECT_FALSE(parse_signal("jawOpen"));
 }
 
 TEST(ChannelMapping, MapsClampsAndInverts) {

@@ -1,7 +1,6 @@
-// OSC: the address scheme, the derived ARKit weights, the sender against a liblo server in
+// OSC: the address scheme, the sender against a liblo server in
 // the test, and the control receiver against liblo's sender.
 #include "allocation_counter.hpp"
-#include "core/arkit_from_signals.hpp"
 #include "core/osc_addresses.hpp"
 #include "drivers/osc_receiver.hpp"
 #include "drivers/osc_sender.hpp"
@@ -54,24 +53,6 @@ TEST(OscAddresses, FaceOscGesturesLandInFaceOscsRanges) {
   EXPECT_FLOAT_EQ(wide_open.mouth_height, 7);
   EXPECT_FLOAT_EQ(wide_open.jaw, 25);
   EXPECT_FLOAT_EQ(osc::face_osc_gestures(signals(3, -1, 0)).mouth_height, 7) << "clamped";
-}
-
-TEST(ArkitFromSignals, FourMouthWeightsFromTheSignals) {
-  EXPECT_EQ(kDerivedArkitNames[0], "jawOpen");
-  const DerivedArkitWeights rest = arkit_from_signals(signals(0, 0.5f, 0));
-  for (float w : rest) EXPECT_FLOAT_EQ(w, 0);
-  const DerivedArkitWeights oh = arkit_from_signals(signals(0.8f, 0.2f, 0.5f));
-  EXPECT_FLOAT_EQ(oh[0], 0.8f);            // jawOpen
-  EXPECT_FLOAT_EQ(oh[2], 0.4f);            // mouthFunnel: forward and open
-  EXPECT_NEAR(oh[3], 0.1f, 1e-6);          // mouthPucker: forward and closed
-  EXPECT_NEAR(oh[2] + oh[3], 0.5f, 1e-6);  // together: the protrusion
-  const DerivedArkitWeights press = arkit_from_signals(signals(0, 0.4f, 0, 0.9f));
-  EXPECT_FLOAT_EQ(press[1], 0.9f);  // mouthClose: the lips touch
-  const DerivedArkitWeights over = arkit_from_signals(signals(2, 0, 2, 3));
-  for (float w : over) {
-    EXPECT_GE(w, 0);
-    EXPECT_LE(w, 1);
-  }
 }
 
 TEST(OscTimeTag, NtpSecondsAndFraction) {

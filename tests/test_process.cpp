@@ -1,5 +1,7 @@
 // Acceptance tests of `lipdrive process`: accuracy on the generated talking face, lip
 // closures on real GRID speech, and bad input that must fail cleanly.
+#include "core/arkit.hpp"
+#include "core/calibration.hpp"
 #include "core/face_tracker.hpp"
 #include "core/metrics.hpp"
 #include "firmware_app/tables/csv_table.hpp"
@@ -133,6 +135,56 @@ TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   const ProcessRun run = run_process(video.string() + " --config " + bad.string(), dir_);
   EXPECT_EQ(run.exit_code, 78) << run.stderr_text;
   EXPECT_NE(run.stderr_text.find("key model.iterations"), std::string::npos) << run.stderr_text;
+}
+
+// The 52 ARKit columns, in Apple's order after the visemes: from the signals for the default
+// (pose-PCA) model, from the expression fit for the ICT head.
+TEST_F(ProcessTest, ArkitColumnsComeFromTheSignalsOrTheFit) {
+  const fs::path video = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(video);
+  const fs::path pca_out = dir_ / "pca.csv", ict_out = dir_ / "ict.csv";
+  ASSERT_EQ(run_process(video.string() + " --out " + pca_out.string(), dir_).exit_code, 0);
+  const fs::path ict = fs::path(LIPDRIVE_MODEL_DIR) / "ict_face_light.lpm";
+  const ProcessRun run =
+      run_process(fmt::format("{} --model {} --landmark-set F5 --out {}", video.string(), ict.string(), ict_out.string()),
+                  dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  const CsvTable pca = read_csv_table(pca_out), fitted = read_csv_table(ict_out);
+  const auto viseme_w = std::find(pca.header.begin(), pca.header.end(), "viseme_W");
+  ASSERT_NE(viseme_w, pca.header.end());
+  for (std::size_t a = 0; a < kArkitNames.size(); ++a)
+    ASSERT_EQ(viseme_w[static_cast<std::ptrdiff_t>(a + 1)], "arkit_" + std::string(kArkitNames[a]));
+  EXPECT_EQ(fitted.header, pca.header);
+
+  // Without expression shapes: jawOpen = open under the default ranges, mouthClose = seal, and
+  // only the four mouth weights move.
+  const PerformerProfile defaults;
+  const auto open = numeric_column(pca, "open"), seal = numeric_column(pca, "seal"),
+             jaw = numeric_column(pca, "arkit_jawOpen"), close = numeric_column(pca, "arkit_mouthClose");
+  for (std::size_t row = 0; row < open.size(); ++row) {
+    ASSERT_FALSE(std::isnan(jaw[row])) << "every frame of the clip is tracked";
+    EXPECT_NEAR(jaw[row], defaults.open.scale(open[row]), 2e-4) << row;
+    EXPECT_NEAR(close[row], seal[row], 2e-4) << row;
+  }
+  const auto highest = [](const CsvTable& table, std::string_view name) {
+    double most = 0;  // untracked frames (NaN) skipped
+    for (const double w : numeric_column(table, "arkit_" + std::string(name))) most = std::max(most, std::isnan(w) ? 0 : w);
+    return most;
+  };
+  EXPECT_GT(highest(pca, "jawOpen"), 0.5);
+  for (const char* other : {"mouthSmileLeft", "browInnerUp", "eyeBlinkRight"}) EXPECT_EQ(highest(pca, other), 0) << other;
+
+  // The ICT head: the weights are the fit's, more than the four mouth weights move, and the
+  // shapes 68 landmarks cannot show read 0. How well jawOpen follows the opening depends on the
+  // performer's identity (GRID figures in docs/arkit.md); here, on the mean face, r is recorded.
+  const SeriesAgreement jaw_fit =
+      compare_series(numeric_column(fitted, "height_2d"), numeric_column(fitted, "arkit_jawOpen"));
+  RecordProperty("ict_mean_face_jawOpen_r_height_2d", fmt::format("{:.3f}", jaw_fit.pearson_r));
+  for (const char* held : {"cheekPuff", "tongueOut", "eyeLookInLeft", "eyeLookUpRight"})
+    EXPECT_EQ(highest(fitted, held), 0) << held;
+  int moving = 0;
+  for (const std::string_view name : kArkitNames) moving += highest(fitted, name) > 0.05;
+  EXPECT_GT(moving, 4);
 }
 
 TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {

@@ -7,6 +7,7 @@
 //
 // A second thread decodes ahead into a small ring of preallocated luma buffers, so decoding
 // overlaps tracking and fitting on a 2-core board; rows still come out in frame order.
+#include "core/calibration.hpp"
 #include "core/side_profile.hpp"
 #include "core/statistics.hpp"
 #include "drivers/clock.hpp"
@@ -272,20 +273,24 @@ SimulatedCamera open_input(const std::filesystem::path& input) {
   }
 }
 
-/// [model] and [tracker] of --config (or the defaults), with the options given on top.
-std::unique_ptr<FrameProcessor> processor_for(const ProcessOptions& options) {
+/// --config (or the defaults), with the options given on top.
+Config config_for(const ProcessOptions& options) {
   Config config;  // the defaults
   if (!options.config.empty()) config = load_config(options.config);
   if (!options.model.empty()) config.model.file = options.model;
   if (!options.landmark_set.empty()) config.model.landmark_set = *parse_landmark_set(options.landmark_set);
   if (!options.predictor.empty()) config.tracker.predictor = options.predictor;
-  return make_processor(config, load_performer(config));
+  return config;
 }
 
 void run_process(const ProcessOptions& options) {
   const auto timecode = timecode_start(options);
   SimulatedCamera camera = open_input(options.input);
-  const std::unique_ptr<FrameProcessor> processor = processor_for(options);
+  const Config config = config_for(options);
+  // The performer's profile (the defaults without one): the fit's identity, and the signals the
+  // ARKit weights of a model without expression shapes come from.
+  const PerformerProfile profile = load_performer(config);
+  const std::unique_ptr<FrameProcessor> processor = make_processor(config, profile);
 
   std::ofstream file;
   if (!options.out.empty()) {
@@ -340,9 +345,14 @@ void run_process(const ProcessOptions& options) {
     times.landmarks.push_back(result.landmarks_ms);
     if (!std::isnan(result.fit_ms)) times.fit.push_back(result.fit_ms);
     if (result.tracked) times.measures.push_back(result.measures_ms);
+    DriveSignals signals;
+    if (result.tracked) {
+      signals = drive_signals(result.measures, result.visemes, profile);
+      processor->set_arkit(signals);
+    }
     row.clear();
     append_measures_csv_row(row, {frame.sequence, frame.media_time_s, frame.source},
-                            result.tracked ? &result.measures : nullptr, result.visemes,
+                            result.tracked ? &result.measures : nullptr, result.visemes, signals.arkit(),
                             options.include_landmarks ? &result.landmarks : nullptr);
     if (side) {
       const std::optional<double> protrusion = side->next();

@@ -299,7 +299,8 @@ void read_channels(std::vector<Section> channels, Config& config) {
     } else {
       channel.fail(
           "signal",
-          fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, seal, viseme_<name>)", signal));
+          fmt::format("unknown signal \"{}\" (open, width, protrusion, tracking, seal, viseme_<name>, arkit_<name>)",
+                      signal));
     }
     spec.in_min = channel.number("in_min", 0, -kMaxIn, kMaxIn);
     spec.in_max = channel.number("in_max", 1, -kMaxIn, kMaxIn);

@@ -10,6 +10,7 @@ namespace lipdrive {
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                                std::shared_ptr<const ShapePredictorData> predictor, const Eigen::VectorXf& identity)
     : fitter_(model, set, settings, identity),
+      arkit_(model.expression_names),
       reference_(mouth_reference(model, identity)),
       visemes_(make_viseme_solver(model, set)),
       tracker_(std::move(predictor)) {}

@@ -3,6 +3,8 @@
 // on fixed-size data. config/factories.hpp builds it from a configuration.
 #pragma once
 
+#include "core/arkit.hpp"
+#include "core/drive_signals.hpp"
 #include "core/face_tracker.hpp"
 #include "core/fitting.hpp"
 #include "core/mouth_measures.hpp"
@@ -46,8 +48,16 @@ class FrameProcessor {
   /// frame was tracked.
   const FitOutput& fit() const { return fit_; }
 
+  /// The 52 ARKit signals of the last frame into `signals`, which holds its other signals
+  /// (core/arkit.hpp: from the fit when the model has expression shapes, else from the signals).
+  /// Call only when that frame was tracked. Allocates nothing.
+  void set_arkit(DriveSignals& signals) const {
+    set_arkit_signals(arkit_, std::span<const double>(fit_.expressions.data(), fit_.expressions.size()), signals);
+  }
+
  private:
   Fitter fitter_;
+  ArkitMap arkit_;
   MouthReference reference_;
   std::optional<VisemeSolver> visemes_;  // nullopt: the model lacks the viseme poses
   FaceTracker tracker_;

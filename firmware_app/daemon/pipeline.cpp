@@ -91,6 +91,7 @@ void Pipeline::process(const CapturedFrame& frame) {
       result.protrusion_side = *side;
       result.signals[Signal::kProtrusion] = static_cast<float>(profile_.protrusion_side.scale(*side));
     }
+    processor_->set_arkit(result.signals);
   }
   result.width = frame.gray.cols;
   result.height = frame.gray.rows;

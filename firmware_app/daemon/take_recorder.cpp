@@ -158,7 +158,7 @@ void TakeRecorder::drain() {
   for (; fd_.valid() && tail != head; ++tail) {
     const FrameResult& r = ring_[tail % kRingSize];
     append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr, r.visemes,
-                            nullptr);
+                            r.signals.arkit(), nullptr);
     fmt::format_to(std::back_inserter(lines_), ",{},{}", drive_source_name(r.drive), r.capture_time_ns);
     if (timecode_rate_) {
       lines_.push_back(',');

@@ -1,6 +1,6 @@
 #include "firmware_app/outputs/osc_output.hpp"
 
-#include "core/arkit_from_signals.hpp"
+#include "core/arkit.hpp"
 #include "core/osc_addresses.hpp"
 #include "drivers/clock.hpp"
 
@@ -24,7 +24,7 @@ std::vector<OscBundle::Message> bundle_layout(std::span<const int> channel_indic
   m.push_back({std::string(osc::kFound), Type::kInt32});
   for (const std::string_view gesture : {osc::kMouthWidth, osc::kMouthHeight, osc::kJaw})
     m.push_back({std::string(gesture), Type::kFloat});
-  for (const std::string_view name : kDerivedArkitNames) m.push_back({fmt::format("/{}", name), Type::kFloat});
+  for (const std::string_view name : kArkitNames) m.push_back({osc::arkit_address(name), Type::kFloat});
   return m;
 }
 
@@ -53,7 +53,7 @@ void OscOutput::fill(OscBundle& bundle, const DriveFrame& frame, bool with_timec
   bundle.set(i++, std::int32_t{(frame.status & kStatusTracking) != 0});
   const osc::FaceOscGestures gestures = osc::face_osc_gestures(frame.signals);
   for (const float gesture : {gestures.mouth_width, gestures.mouth_height, gestures.jaw}) bundle.set(i++, gesture);
-  for (const float weight : arkit_from_signals(frame.signals)) bundle.set(i++, weight);
+  for (const float weight : frame.signals.arkit()) bundle.set(i++, weight);
 }
 
 bool OscOutput::send(const DriveFrame& frame) {

@@ -23,14 +23,17 @@ struct CsvRowKey {
   std::string_view source;
 };
 
-/// The column names, without the line end: the measures, then viseme_Aah..viseme_W; with
+/// The column names, without the line end: the measures, then viseme_Aah..viseme_W, then the
+/// 52 ARKit weights arkit_eyeBlinkLeft..arkit_tongueOut (core/arkit.hpp); with
 /// `include_landmarks`, x0..x67,y0..y67 follow.
 std::string measures_csv_header(bool include_landmarks);
 
 /// One row under measures_csv_header, without the line end. `measures` null: the frame was
-/// not tracked (empty fields; `visemes` is not read). `landmarks` null: no landmark columns.
+/// not tracked (empty fields; `visemes` and `arkit` are not read). `landmarks` null: no
+/// landmark columns.
 void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, const MouthMeasures* measures,
-                             std::span<const float, kNumVisemes> visemes, const Landmarks2D* landmarks);
+                             std::span<const float, kNumVisemes> visemes, std::span<const float, kNumArkit> arkit,
+                             const Landmarks2D* landmarks);
 
 /// "HH:MM:SS:FF" (';' before the frames at 29.97 drop-frame) of a frame number: the timecode
 /// column of takes and of `lipdrive process --timecode`.

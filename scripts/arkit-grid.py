@@ -1,0 +1,168 @@
+#!/usr/bin/env python3
+"""The ARKit weights of the ICT head on GRID speech (docs/arkit.md, "Figures").
+
+Per clip (../shared/fixtures/grid_train/*.mpg in file-name order, then ../shared/fixtures/grid):
+`lipdrive calibrate --input CLIP` fits the performer's identity on its first tracked frames (a
+profile per clip), then `lipdrive process CLIP --config` fits every frame on it with the ICT
+head and the jaw line (F5). With --mean-face the identity step is skipped (the mean face).
+
+Reported, for the tuning half (the first 25 grid_train clips) and the check half (the other 25
+and fixtures/grid) apart:
+  jawOpen      Pearson r against the inner-lip height (height_2d) per clip over its tracked
+               frames: median, mean, min, and pooled over all frames of the half
+  closures     mouthClose and mouthPress (the mean of Left and Right) over the bilabial words
+               (bin, blue, by, place, please, b, p, m; docs/method.md 5), each word's frames
+               widened by 2 on each side: the mean weight there against the mean over the other
+               speech words, and the share of bilabial words whose peak is above the 75th
+               percentile of the clip's other speech frames
+  rounding     mouthPucker and mouthFunnel the same way over "with", "two", "blue"
+
+usage: scripts/arkit-grid.py [--mean-face] [--build DIR] [--keep DIR]
+"""
+import argparse
+import csv
+import math
+import os
+import pathlib
+import statistics
+import subprocess
+import sys
+import tempfile
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SHARED = ROOT.parent / "shared" / "fixtures"
+BILABIAL = {"bin", "blue", "by", "place", "please", "b", "p", "m"}
+ROUNDED = {"with", "two", "blue"}
+
+
+def pearson(x, y):
+    mx, my = statistics.fmean(x), statistics.fmean(y)
+    sxy = sum((a - mx) * (b - my) for a, b in zip(x, y))
+    sxx = sum((a - mx) ** 2 for a in x)
+    syy = sum((b - my) ** 2 for b in y)
+    return sxy / math.sqrt(sxx * syy) if sxx > 0 and syy > 0 else float("nan")
+
+
+def quantile(values, p):  # the nearest rank, core/statistics.hpp
+    ordered = sorted(values)
+    return ordered[max(1, math.ceil(p * len(ordered))) - 1]
+
+
+def words(align):
+    """(first frame, last frame, word) of each word of a GRID .align (times / 1000 = frames)."""
+    out = []
+    for line in align.read_text().split("\n"):
+        parts = line.split()
+        if len(parts) == 3 and parts[2] not in ("sil", "sp"):
+            out.append((int(parts[0]) // 1000, (int(parts[1]) - 1) // 1000, parts[2]))
+    return out
+
+
+def table(path):
+    with open(path, newline="") as f:
+        rows = [r for r in csv.reader(line for line in f if not line.startswith("#"))]
+    header = rows[0]
+    columns = {name: [] for name in header if name != "source"}
+    for row in rows[1:]:
+        for name, value in zip(header, row):
+            if name != "source":
+                columns[name].append(float(value) if value != "" else float("nan"))
+    return columns
+
+
+def run(args, log):
+    result = subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if result.returncode != 0:
+        sys.exit(f"{' '.join(map(str, args))}: exit {result.returncode}\n{result.stderr}")
+    log.write(result.stderr)
+
+
+def process_clip(clip, work, build, mean_face, log):
+    model = ROOT / "models" / "ict_face_light.lpm"
+    config = work / f"config_{clip.stem}.toml"
+    performer = "" if mean_face else clip.stem
+    config.write_text(f'[model]\nfile = "{model}"\nlandmark_set = "F5"\n'
+                      f'[performer]\nname = "{performer}"\nprofiles_dir = "{work}"\n')
+    if not mean_face:
+        calibrate = work / f"calibrate_{clip.stem}.toml"
+        calibrate.write_text(config.read_text().replace(f'name = "{clip.stem}"', 'name = ""'))
+        run([build / "lipdrive", "calibrate", "--config", calibrate, "--performer", clip.stem, "--input", clip,
+             "--neutral-frames", "20"], log)
+    out = work / f"table_{clip.stem}.csv"
+    run([build / "lipdrive", "process", clip, "--config", config, "--out", out], log)
+    return table(out)
+
+
+def word_stats(clip_words, targets, weight):
+    """Per clip: (mean over target-word frames, mean over other speech frames, words whose peak
+    is above the 75th percentile of the other speech frames, target words)."""
+    n = len(weight)
+    target_frames, other_frames, peaks = set(), set(), []
+    for first, last, word in clip_words:
+        frames = range(max(0, first), min(n - 1, last) + 1)
+        if word in targets:
+            widened = [f for f in range(max(0, first - 2), min(n - 1, last + 2) + 1) if not math.isnan(weight[f])]
+            target_frames.update(widened)
+            peaks.append(max((weight[f] for f in widened), default=float("nan")))
+        else:
+            other_frames.update(f for f in frames if not math.isnan(weight[f]))
+    other_frames -= target_frames
+    if not peaks or not other_frames:
+        return None
+    others = [weight[f] for f in other_frames]
+    bar = quantile(others, 0.75)
+    return (statistics.fmean(weight[f] for f in target_frames), statistics.fmean(others),
+            sum(p > bar for p in peaks), len(peaks))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--mean-face", action="store_true", help="no identity per clip: the model's mean face")
+    parser.add_argument("--build", type=pathlib.Path, default=ROOT / "build")
+    parser.add_argument("--keep", type=pathlib.Path, help="keep the profiles and tables here")
+    args = parser.parse_args()
+    train = sorted((SHARED / "grid_train").glob("*.mpg"))
+    halves = {"tuning": train[:25], "check": train[25:] + sorted((SHARED / "grid").glob("*.mpg"))}
+    work = args.keep or pathlib.Path(tempfile.mkdtemp(prefix="arkit-grid-"))
+    work.mkdir(parents=True, exist_ok=True)
+    with open(work / "log.txt", "w") as log:
+        for half, clips in halves.items():
+            r, pooled_x, pooled_y = [], [], []
+            sums = {k: [0.0, 0.0, 0, 0, 0] for k in ("mouthClose", "mouthPress", "mouthPucker", "mouthFunnel")}
+            for clip in clips:
+                c = process_clip(clip, work, args.build, args.mean_face, log)
+                tracked = [i for i, t in enumerate(c["tracked"]) if t == 1]
+                x = [c["height_2d"][i] for i in tracked]
+                y = [c["arkit_jawOpen"][i] for i in tracked]
+                r.append(pearson(x, y))
+                pooled_x += x
+                pooled_y += y
+                clip_words = words(clip.with_suffix(".align"))
+                series = {
+                    "mouthClose": c["arkit_mouthClose"],
+                    "mouthPress": [(a + b) / 2 for a, b in zip(c["arkit_mouthPressLeft"], c["arkit_mouthPressRight"])],
+                    "mouthPucker": c["arkit_mouthPucker"],
+                    "mouthFunnel": c["arkit_mouthFunnel"],
+                }
+                for name, weight in series.items():
+                    s = word_stats(clip_words, BILABIAL if name in ("mouthClose", "mouthPress") else ROUNDED, weight)
+                    if s is None:
+                        continue
+                    acc = sums[name]
+                    acc[0] += s[0]
+                    acc[1] += s[1]
+                    acc[2] += s[2]
+                    acc[3] += s[3]
+                    acc[4] += 1
+            finite = [v for v in r if not math.isnan(v)]
+            print(f"{half} ({len(clips)} clips): jawOpen r vs height_2d median {statistics.median(finite):.3f}, "
+                  f"mean {statistics.fmean(finite):.3f}, min {min(finite):.3f}, pooled {pearson(pooled_x, pooled_y):.3f}")
+            for name, (target, other, risen, total, n) in sums.items():
+                where = "bilabial" if name in ("mouthClose", "mouthPress") else "with/two/blue"
+                print(f"  {name}: mean {target / n:.3f} over {where} words vs {other / n:.3f} over other speech "
+                      f"({n} clips); peak above the clip's 75th percentile on {risen}/{total} words")
+    print(f"tables and profiles in {work}")
+
+
+if __name__ == "__main__":
+    main()
