@@ -29,7 +29,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <new>
+#include <pthread.h>
+#include <sched.h>
 #include <sstream>
 #include <string>
 #include <sys/wait.h>
@@ -240,6 +243,49 @@ TEST_F(PipelineTest, ProcessingAllocatesNothingPerFrame) {
   // Re-detecting a lost face allocates (dlib's detector); the clip keeps the face tracked.
   ASSERT_EQ(stats.lost_track, 0u);
   EXPECT_EQ(test::allocation_count() - before, 0) << "over " << watch.frames - AllocationWatch::kWarmUp << " frames";
+}
+
+/// The policy and name of each of this process's threads, from /proc/self/task.
+std::map<std::string, int> thread_policies() {
+  std::map<std::string, int> policies;
+  for (const auto& task : fs::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string name;
+    std::getline(comm, name);
+    const int policy = sched_getscheduler(std::stoi(task.path().filename().string()));
+    if (policy >= 0) policies[name] = policy;
+  }
+  return policies;
+}
+
+/// Whether this process may use SCHED_FIFO (root, CAP_SYS_NICE or RLIMIT_RTPRIO), tried on a
+/// thread of its own.
+bool realtime_allowed() {
+  bool allowed = false;
+  std::thread probe([&allowed] {
+    sched_param param{};
+    param.sched_priority = 1;
+    allowed = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
+  });
+  probe.join();
+  return allowed;
+}
+
+TEST_F(PipelineTest, FramePathThreadsAreNamedAndRealTimeWhenAskedAndAllowed) {
+  PipelineSettings settings;
+  settings.realtime_priority = 5;
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings, control);
+  pipeline.start();
+  wait_for([&] { return pipeline.stats().processed >= 5; }, 60s);
+  const std::map<std::string, int> policies = thread_policies();
+  pipeline.stop();
+  EXPECT_GE(pipeline.stats().processed, 5u) << "refused or granted, the frame path runs";
+  const int expected = realtime_allowed() ? SCHED_FIFO : SCHED_OTHER;
+  for (const char* name : {"lipdrive-captur", "lipdrive-proces", "lipdrive-output"}) {
+    ASSERT_TRUE(policies.contains(name)) << name;
+    EXPECT_EQ(policies.at(name), expected) << name;
+  }
 }
 
 TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {

@@ -259,6 +259,12 @@ void read_status(Section status, Config& config) {
   status.reject_unknown_keys();
 }
 
+void read_scheduling(Section scheduling, Config& config) {
+  Config::Scheduling& s = config.scheduling;
+  s.realtime_priority = scheduling.integer("realtime_priority", s.realtime_priority, 0, 99);
+  scheduling.reject_unknown_keys();
+}
+
 void read_performer(Section performer, Config& config) {
   Config::Performer& p = config.performer;
   p.name = performer.string("name", "");
@@ -620,6 +626,7 @@ Config load_config(const fs::path& file) {
   read_side_camera(top.table("side_camera"), config);
   read_recording(top.table("recording"), config);
   read_status(top.table("status"), config);
+  read_scheduling(top.table("scheduling"), config);
   read_performer(top.table("performer"), config);
   read_safety(top.table("safety"), config);
   read_channels(top.tables("channels"), config);

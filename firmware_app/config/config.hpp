@@ -137,6 +137,10 @@ struct Config {
     int print_interval_ms = 1000;  // 0 = off
   } status;
 
+  struct Scheduling {
+    int realtime_priority = 0;  // the frame path's threads under SCHED_FIFO, 1..99; 0 = off
+  } scheduling;
+
   struct Performer {
     std::string name;                                                   // "" = uncalibrated defaults
     std::filesystem::path profiles_dir = "/var/lib/lipdrive/profiles";  // <profiles_dir>/<name>.toml

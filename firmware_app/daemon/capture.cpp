@@ -1,6 +1,7 @@
 #include "firmware_app/daemon/capture.hpp"
 
 #include "drivers/clock.hpp"
+#include "drivers/thread_scheduling.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -15,9 +16,10 @@ Capture::Capture(std::unique_ptr<FrameSource> source, std::string_view role, std
 
 Capture::~Capture() { stop(); }
 
-void Capture::start() {
+std::string Capture::start(const char* thread_name, int realtime_priority) {
   heartbeat_ns_ = monotonic_ns();
   thread_ = std::thread(&Capture::run, this);
+  return schedule_thread(thread_, thread_name, realtime_priority);
 }
 
 void Capture::stop() {

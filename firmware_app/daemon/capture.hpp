@@ -47,7 +47,9 @@ class Capture {
   Capture(const Capture&) = delete;
   Capture& operator=(const Capture&) = delete;
 
-  void start();
+  /// Starts the capture thread, named `thread_name`, under SCHED_FIFO at `realtime_priority`
+  /// (0: the normal scheduler). Returns "" or why the priority was refused (the thread runs).
+  std::string start(const char* thread_name, int realtime_priority);
   /// Joins the thread; grab() returns at least every grab_timeout, so this is prompt.
   void stop();
 

@@ -39,6 +39,7 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
   settings.channels = config_.channels;
   settings.safety = config_.safety;
   settings.neutral_frames = config_.performer.neutral_frames;
+  settings.realtime_priority = config_.scheduling.realtime_priority;
   settings.model_mismatch = model_mismatch(config_, profile_, files);
   settings.voice_crossfade = std::chrono::milliseconds(config_.voice.crossfade_ms);
   settings.voice_timeout = std::chrono::milliseconds(config_.voice.audio_timeout_ms);

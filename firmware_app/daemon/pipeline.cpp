@@ -1,6 +1,7 @@
 #include "firmware_app/daemon/pipeline.hpp"
 
 #include "drivers/clock.hpp"
+#include "drivers/thread_scheduling.hpp"
 
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
@@ -43,10 +44,23 @@ void Pipeline::set_profile(const PerformerProfile& profile) {
 void Pipeline::start() {
   start_ns_ = monotonic_ns();
   last_watchdog_ns_ = 0;
-  if (side_) side_->start();
-  capture_.start();
+  const int priority = settings_.realtime_priority;
+  std::string refused;  // the first refusal: the reason is the same for every thread
+  const auto note = [&refused](std::string why) {
+    if (refused.empty()) refused = std::move(why);
+  };
+  if (side_) note(side_->start(priority));
+  note(capture_.start("lipdrive-capture", priority));
   processing_thread_ = std::thread(&Pipeline::processing_loop, this);
+  note(schedule_thread(processing_thread_, "lipdrive-process", priority));
   output_thread_ = std::thread(&Pipeline::output_loop, this);
+  note(schedule_thread(output_thread_, "lipdrive-output", priority));
+  if (!refused.empty())
+    spdlog::warn("{}; the frame path runs under the normal scheduler (the service needs LimitRTPRIO={} and "
+                 "RestrictRealtime=no)",
+                 refused, priority);
+  else if (priority > 0)
+    spdlog::info("the frame path runs under SCHED_FIFO at priority {}", priority);
 }
 
 void Pipeline::stop() {

@@ -58,6 +58,9 @@ struct PipelineSettings {
   SafetySettings safety;
   std::chrono::milliseconds output_tick{20};
   int neutral_frames = 30;      // tracked frames of a calibrate command's neutral capture
+  /// The frame path's threads (capture, side capture, processing, output) under SCHED_FIFO at
+  /// this priority, 1..99; 0 = the normal scheduler.
+  int realtime_priority = 0;
   bool model_mismatch = false;  // reported in the status word (kStatusModelMismatch)
   /// [voice]: the cross-fade between video and voice; no sound for voice_timeout: the voice is gone.
   std::chrono::milliseconds voice_crossfade{150}, voice_timeout{200};

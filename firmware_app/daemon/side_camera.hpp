@@ -35,7 +35,8 @@ class SideCamera {
   /// many frames after each recalibrate().
   SideCamera(std::unique_ptr<FrameSource> source, SideProfileSettings settings, int neutral_frames);
 
-  void start() { capture_.start(); }
+  /// Starts the side camera's capture thread; see Capture::start.
+  std::string start(int realtime_priority) { return capture_.start("lipdrive-side", realtime_priority); }
   void stop() { capture_.stop(); }
 
   /// Processing thread: the protrusion of the side frame nearest to `front_time_ns`, if one

@@ -1,6 +1,7 @@
 #include "firmware_app/outputs/sender_output.hpp"
 
 #include "drivers/clock.hpp"
+#include "drivers/thread_scheduling.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -22,7 +23,11 @@ SenderOutput::SenderOutput(std::string description, int rate_hz, std::chrono::mi
       period_ns_(1'000'000'000 / std::max(rate_hz, 1)),
       backoff_(kFirstBackoff, max_backoff) {}
 
-void SenderOutput::start() { thread_ = std::thread(&SenderOutput::run, this); }
+void SenderOutput::start() {
+  thread_ = std::thread(&SenderOutput::run, this);
+  // "lipdrive-dmx", "lipdrive-osc", ...: the description's first word.
+  schedule_thread(thread_, ("lipdrive-" + description_.substr(0, description_.find(' '))).c_str(), 0);
+}
 
 void SenderOutput::stop() {
   {
