@@ -1,38 +1,21 @@
 #include "drivers/audio_file.hpp"
 
+#include "drivers/ffmpeg_handles.hpp"
+
 #include <fmt/format.h>
 
 extern "C" {
-#include <libavcodec/avcodec.h>
-#include <libavformat/avformat.h>
 #include <libavutil/opt.h>
 #include <libswresample/swresample.h>
 }
 
-#include <array>
 #include <memory>
 
 namespace lipdrive {
 namespace {
 
-std::string av_error(int error) {
-  std::array<char, AV_ERROR_MAX_STRING_SIZE> text{};
-  av_strerror(error, text.data(), text.size());
-  return text.data();
-}
+using ffmpeg::error_text;
 
-struct FormatCloser {
-  void operator()(AVFormatContext* c) const { avformat_close_input(&c); }
-};
-struct CodecFreer {
-  void operator()(AVCodecContext* c) const { avcodec_free_context(&c); }
-};
-struct PacketFreer {
-  void operator()(AVPacket* p) const { av_packet_free(&p); }
-};
-struct FrameFreer {
-  void operator()(AVFrame* f) const { av_frame_free(&f); }
-};
 struct ResamplerFreer {
   void operator()(SwrContext* s) const { swr_free(&s); }
 };
@@ -48,10 +31,10 @@ class TrackDecoder {
   TrackDecoder(const std::filesystem::path& file, int sample_rate) : name_(file.string()), rate_(sample_rate) {
     AVFormatContext* format = nullptr;
     if (const int e = avformat_open_input(&format, name_.c_str(), nullptr, nullptr); e < 0)
-      fail(fmt::format("cannot open: {}", av_error(e)));
+      fail(fmt::format("cannot open: {}", error_text(e)));
     format_.reset(format);
     if (const int e = avformat_find_stream_info(format, nullptr); e < 0)
-      fail(fmt::format("cannot read the streams: {}", av_error(e)));
+      fail(fmt::format("cannot read the streams: {}", error_text(e)));
     const AVCodec* codec = nullptr;
     stream_ = av_find_best_stream(format, AVMEDIA_TYPE_AUDIO, -1, -1, &codec, 0);
     if (stream_ < 0) fail("no audio track (the clip is video-only)");
@@ -63,18 +46,18 @@ class TrackDecoder {
     codec_.reset(avcodec_alloc_context3(codec));
     if (!codec_) fail("out of memory");
     if (const int e = avcodec_parameters_to_context(codec_.get(), audio->codecpar); e < 0)
-      fail(fmt::format("bad audio parameters: {}", av_error(e)));
+      fail(fmt::format("bad audio parameters: {}", error_text(e)));
     if (const int e = avcodec_open2(codec_.get(), codec, nullptr); e < 0)
-      fail(fmt::format("cannot open the audio decoder: {}", av_error(e)));
+      fail(fmt::format("cannot open the audio decoder: {}", error_text(e)));
 
     // Resampled in the track's own channel layout, planar float; the channels are averaged here.
     SwrContext* resampler = nullptr;
     if (const int e = swr_alloc_set_opts2(&resampler, &codec_->ch_layout, AV_SAMPLE_FMT_FLTP, rate_, &codec_->ch_layout,
                                           codec_->sample_fmt, codec_->sample_rate, 0, nullptr);
         e < 0)
-      fail(fmt::format("cannot resample: {}", av_error(e)));
+      fail(fmt::format("cannot resample: {}", error_text(e)));
     resampler_.reset(resampler);
-    if (const int e = swr_init(resampler); e < 0) fail(fmt::format("cannot resample: {}", av_error(e)));
+    if (const int e = swr_init(resampler); e < 0) fail(fmt::format("cannot resample: {}", error_text(e)));
     channels_ = codec_->ch_layout.nb_channels;
     if (channels_ < 1) fail("the audio track has no channels");
   }
@@ -84,13 +67,13 @@ class TrackDecoder {
     out.sample_rate = rate_;
     out.source_rate = codec_->sample_rate;
     out.start_s = start_s_;
-    const std::unique_ptr<AVPacket, PacketFreer> packet(av_packet_alloc());
-    const std::unique_ptr<AVFrame, FrameFreer> frame(av_frame_alloc());
+    const ffmpeg::Packet packet(av_packet_alloc());
+    const ffmpeg::Frame frame(av_frame_alloc());
     if (!packet || !frame) fail("out of memory");
     for (;;) {
       const int e = av_read_frame(format_.get(), packet.get());
       if (e == AVERROR_EOF) break;
-      if (e < 0) fail(fmt::format("cannot read: {}", av_error(e)));
+      if (e < 0) fail(fmt::format("cannot read: {}", error_text(e)));
       if (packet->stream_index == stream_) send(packet.get(), frame.get(), out);
       av_packet_unref(packet.get());
     }
@@ -106,11 +89,11 @@ class TrackDecoder {
 
   void send(const AVPacket* packet, AVFrame* frame, DecodedAudio& out) {
     if (const int e = avcodec_send_packet(codec_.get(), packet); e < 0 && e != AVERROR_EOF)
-      fail(fmt::format("cannot decode the audio: {}", av_error(e)));
+      fail(fmt::format("cannot decode the audio: {}", error_text(e)));
     for (;;) {
       const int e = avcodec_receive_frame(codec_.get(), frame);
       if (e == AVERROR(EAGAIN) || e == AVERROR_EOF) return;
-      if (e < 0) fail(fmt::format("cannot decode the audio: {}", av_error(e)));
+      if (e < 0) fail(fmt::format("cannot decode the audio: {}", error_text(e)));
       convert(const_cast<const std::uint8_t**>(frame->extended_data), frame->nb_samples, out);
       av_frame_unref(frame);
     }
@@ -126,7 +109,7 @@ class TrackDecoder {
       pointers.push_back(reinterpret_cast<std::uint8_t*>(plane.data()));
     }
     const int made = swr_convert(resampler_.get(), pointers.data(), room, in, count);
-    if (made < 0) fail(fmt::format("cannot resample: {}", av_error(made)));
+    if (made < 0) fail(fmt::format("cannot resample: {}", error_text(made)));
     const float scale = 1.0f / static_cast<float>(channels_);
     for (int i = 0; i < made; ++i) {
       float sum = 0;
@@ -137,8 +120,8 @@ class TrackDecoder {
 
   std::string name_;
   int rate_;
-  std::unique_ptr<AVFormatContext, FormatCloser> format_;
-  std::unique_ptr<AVCodecContext, CodecFreer> codec_;
+  ffmpeg::Format format_;
+  ffmpeg::Codec codec_;
   std::unique_ptr<SwrContext, ResamplerFreer> resampler_;
   int stream_ = -1;
   int channels_ = 0;

@@ -1,13 +1,13 @@
 #include "drivers/v4l2_camera.hpp"
 
 #include "drivers/clock.hpp"
+#include "drivers/image_codec.hpp"
 #include "drivers/unique_fd.hpp"
 
 #include <fcntl.h>
 #include <sys/mman.h>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <array>
@@ -326,11 +326,12 @@ void V4l2Camera::start_stream() {
   stream_ = StreamOpener(system_, path_).open(options_, negotiated);
   negotiated_ = std::move(negotiated);
   stream_started_ = false;
-  // YUYV's luma plane is gathered here, allocated once per stream.
+  // YUYV's luma plane is gathered here, allocated once per stream; MJPEG's decoded into it.
   if (negotiated_.format == PixelFormat::kYuyv)
     luma_.create(static_cast<int>(negotiated_.height), static_cast<int>(negotiated_.width), CV_8UC1);
   else
     luma_.release();
+  if (negotiated_.format == PixelFormat::kMjpeg && !jpeg_) jpeg_ = std::make_unique<JpegDecoder>();
 }
 
 GrabStatus V4l2Camera::grab(Frame& frame, std::chrono::milliseconds timeout) {
@@ -412,9 +413,9 @@ cv::Mat V4l2Camera::luma_of(const void* data, std::uint32_t bytes_used) {
       cv::extractChannel(cv::Mat(height, width, CV_8UC2, pixels, negotiated_.bytes_per_line), luma_, 0);
       return luma_;
     case PixelFormat::kMjpeg:
-      // A fresh image per frame: imdecode into an existing Mat leaves it untouched when the
-      // data is not a JPEG at all, which would pass a stale frame off as new.
-      return cv::imdecode(cv::Mat(1, static_cast<int>(bytes_used), CV_8UC1, pixels), cv::IMREAD_GRAYSCALE);
+      // Not a JPEG: an empty image (never the previous frame's), which counts as corrupt.
+      jpeg_->decode({static_cast<const std::uint8_t*>(data), bytes_used}, luma_);
+      return luma_;
     case PixelFormat::kAuto: break;
   }
   throw std::logic_error("stream without a concrete pixel format");

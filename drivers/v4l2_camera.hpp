@@ -17,6 +17,7 @@
 
 #include "core/backoff.hpp"
 #include "drivers/frame_source.hpp"
+#include "drivers/image_codec.hpp"
 #include "drivers/system_calls.hpp"
 
 #include <linux/videodev2.h>
@@ -112,7 +113,8 @@ class V4l2Camera final : public FrameSource {
   V4l2Negotiated negotiated_;
   V4l2Counters counters_;
   std::unique_ptr<detail::V4l2Stream> stream_;
-  cv::Mat luma_;  // YUYV's luma plane, allocated at open and reused for every frame
+  cv::Mat luma_;  // YUYV's luma plane or MJPEG's decoded one, reused for every frame
+  std::unique_ptr<JpegDecoder> jpeg_;  // MJPEG streams
 
   // Sequence bookkeeping: Frame::sequence keeps counting across reconnects, and the driver
   // restarts its own numbering with every stream.

@@ -13,7 +13,7 @@ packages=(
   socat ffmpeg systemd clang-format
   libola-dev ola liblo-dev liblo-tools libltc-dev
   lintian chromium chromium-driver
-  libasound2-dev libaubio-dev libavformat-dev libavcodec-dev libswresample-dev libavutil-dev
+  libasound2-dev libaubio-dev libavformat-dev libavcodec-dev libswresample-dev libswscale-dev libavutil-dev
 )
 
 missing=()

@@ -2,9 +2,6 @@
 
 #include "drivers/clock.hpp"
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -43,14 +40,6 @@ std::vector<std::filesystem::path> list_images(const std::filesystem::path& fold
   return images;
 }
 
-// Some decoders hand out gray frames already; the rest are BGR.
-void to_gray(const cv::Mat& decoded, cv::Mat& gray) {
-  if (decoded.channels() == 1)
-    decoded.copyTo(gray);
-  else
-    cv::cvtColor(decoded, gray, decoded.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
-}
-
 }  // namespace
 
 bool is_image_file_name(const std::filesystem::path& path) {
@@ -72,8 +61,11 @@ SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options, ReplayClock* cl
   } else if (is_image_file_name(input)) {
     kind_ = Kind::kImages;
     images_ = {input};
-    single_image_ = cv::imread(input.string(), cv::IMREAD_GRAYSCALE);
-    if (single_image_.empty()) throw SourceError(input.string() + ": cannot decode the image");
+    try {
+      single_image_ = read_gray_image(input);
+    } catch (const MediaError& e) {
+      throw SourceError(e.what());
+    }
   } else {
     kind_ = Kind::kVideo;
     video_path_ = input.string();
@@ -86,14 +78,15 @@ SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options, ReplayClock* cl
 }
 
 void SimulatedCamera::open_video() {
-  if (!capture_.open(video_path_, cv::CAP_FFMPEG))
-    throw SourceError(video_path_ + ": not a video or image that can be decoded");
-  const double fps = capture_.get(cv::CAP_PROP_FPS);
-  frame_rate_ = options_.replay_rate > 0        ? options_.replay_rate
-                : std::isfinite(fps) && fps > 0 ? fps
-                                                : options_.image_frame_rate;
-  const double count = capture_.get(cv::CAP_PROP_FRAME_COUNT);
-  expected_frames_ = std::isfinite(count) && count > 0 ? static_cast<std::int64_t>(count) : 0;
+  try {
+    video_.reset();  // one decoder at a time
+    video_ = std::make_unique<VideoFile>(video_path_);
+  } catch (const MediaError& e) {
+    throw SourceError(e.what());
+  }
+  const double fps = video_->frame_rate();
+  frame_rate_ = options_.replay_rate > 0 ? options_.replay_rate : fps > 0 ? fps : options_.image_frame_rate;
+  expected_frames_ = video_->frame_count();
 }
 
 std::string SimulatedCamera::describe() const { return "sim:" + options_.input.string(); }
@@ -206,7 +199,7 @@ GrabStatus SimulatedCamera::read_frame(Frame& frame) {
 }
 
 GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
-  if (!capture_.read(decoded_) || decoded_.empty()) {
+  if (!video_->read(gray_)) {
     if (expected_frames_ > 0 && position_ < expected_frames_) {
       last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(position_) + " of " +
                     std::to_string(expected_frames_) + " (the file is damaged or truncated)";
@@ -215,7 +208,6 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
     }
     return GrabStatus::kEndOfStream;
   }
-  to_gray(decoded_, gray_);
   frame.gray = gray_;
   frame.media_time_s = static_cast<double>(position_) / frame_rate_;
   frame.source = video_path_;
@@ -232,10 +224,10 @@ GrabStatus SimulatedCamera::read_image_frame(Frame& frame) {
     frame.gray = single_image_;
     return GrabStatus::kFrame;
   }
-  // imread allocates inside the decoder; nothing else here does once running.
-  gray_ = cv::imread(images_[index].string(), cv::IMREAD_GRAYSCALE);
-  if (gray_.empty()) {
-    last_error_ = images_[index].string() + ": cannot decode the image";
+  try {
+    gray_ = read_gray_image(images_[index]);
+  } catch (const MediaError& e) {
+    last_error_ = e.what();
     return GrabStatus::kCorrupt;
   }
   frame.gray = gray_;

@@ -1,17 +1,18 @@
-// A FrameSource that replays a recording: a video file (OpenCV, FFmpeg backend), a
-// single image, or a folder of images in file-name order. CI and a bench without
+// A FrameSource that replays a recording: a video file, a single image, or a folder of
+// images in file-name order, decoded by FFmpeg's libraries (drivers/video_file.hpp). CI and a bench without
 // hardware run the whole pipeline through it (docs/data-flow.md).
 #pragma once
 
 #include "drivers/frame_source.hpp"
+#include "drivers/video_file.hpp"
 #include "sim/replay_clock.hpp"
 
 #include <opencv2/core/mat.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -97,10 +98,9 @@ class SimulatedCamera : public FrameSource {
   std::vector<std::string> image_names_;  // `source` of image frames (file names)
   cv::Mat single_image_;                  // a lone image is decoded once, up front
 
-  cv::VideoCapture capture_;
+  std::unique_ptr<VideoFile> video_;  // the open video (reopened to rewind)
   double frame_rate_ = 0;
   std::int64_t expected_frames_ = 0;  // container's frame count, 0 if unknown
-  cv::Mat decoded_;                   // decoder output (BGR), reused across frames
   cv::Mat gray_;                      // delivered luma plane, reused across frames
 
   std::int64_t position_ = 0;   // index of the next frame within the recording

@@ -2,6 +2,7 @@
 // meshes, describe a model file, and render one of its poses to a PNG.
 #include "core/model_builder.hpp"
 #include "core/model_format.hpp"
+#include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -11,7 +12,6 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <filesystem>
@@ -181,13 +181,11 @@ void render(const RenderArgs& args) {
   const MorphableModel model = load_model_file(args.model);
   const Mesh mesh = model.mesh(named_shape(model, args.pose, args.model));
   const cv::Mat image = render_mesh(mesh, RenderView{args.yaw_degrees, cv::Size(args.size, args.size)});
-  bool written = false;
   try {
-    written = cv::imwrite(args.out.string(), image);
-  } catch (const cv::Exception& e) {
-    throw CommandError(fmt::format("{}: cannot write the image: {}", args.out.string(), e.what()));
+    write_png(args.out, image);
+  } catch (const MediaError& e) {
+    throw CommandError(e.what());
   }
-  if (!written) throw CommandError(fmt::format("{}: cannot write the image", args.out.string()));
 }
 
 void add_build_command(CLI::App& model) {

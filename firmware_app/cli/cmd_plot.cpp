@@ -1,12 +1,12 @@
 // `lipdrive plot`: trajectories of CSV columns over time as a PNG, one panel per
 // column, one coloured line per file, gaps where a value is missing.
+#include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
@@ -305,13 +305,11 @@ void run_plot(const PlotOptions& options) {
   }
 
   const cv::Mat image = render_plot(files, options, x_name);
-  bool written = false;
   try {
-    written = cv::imwrite(options.out, image);
-  } catch (const cv::Exception& e) {
-    throw CommandError(fmt::format("cannot write {}: {}", options.out, e.err));
+    write_png(options.out, image);
+  } catch (const MediaError& e) {
+    throw CommandError(e.what());
   }
-  if (!written) throw CommandError(fmt::format("cannot write {}", options.out));
   spdlog::info("wrote {} ({}x{})", options.out, image.cols, image.rows);
 }
 

@@ -1,5 +1,7 @@
 #include "firmware_app/daemon/voice_room.hpp"
 
+#include "drivers/thread_scheduling.hpp"
+
 #include <fmt/format.h>
 
 #include <span>
@@ -17,7 +19,9 @@ VoiceRoom::VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model
       features_(model.features),
       predictor_(model),
       frames_(static_cast<std::size_t>(kMaxAudioBlockFrames / model.features.hop + 1)),
-      thread_(&VoiceRoom::run, this) {}
+      thread_(&VoiceRoom::run, this) {
+  schedule_thread(thread_, "lipdrive-voice", 0);
+}
 
 VoiceRoom::~VoiceRoom() {
   stop_ = true;

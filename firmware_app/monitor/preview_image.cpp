@@ -1,6 +1,7 @@
 #include "firmware_app/monitor/preview_image.hpp"
 
-#include <opencv2/imgcodecs.hpp>
+#include "drivers/image_codec.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -26,12 +27,6 @@ void dot(cv::Mat& canvas, const cv::Point2f& point, int decimation, const cv::Sc
 
 void warn(cv::Mat& canvas, const char* text, int line) {
   cv::putText(canvas, text, {8, 24 * line}, cv::FONT_HERSHEY_SIMPLEX, 0.7, kNoFaceColour, 2, cv::LINE_AA);
-}
-
-std::string encoded(const cv::Mat& canvas, int quality) {
-  std::vector<unsigned char> bytes;
-  cv::imencode(".jpg", canvas, bytes, {cv::IMWRITE_JPEG_QUALITY, quality});
-  return {bytes.begin(), bytes.end()};
 }
 
 /// The closed contour through landmarks first..last of `points`; none when one is unmapped.
@@ -61,7 +56,7 @@ std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality
   } else {
     warn(canvas, "no face", 1);
   }
-  return encoded(canvas, quality);
+  return encode_jpeg(canvas, quality);
 }
 
 std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality) {
@@ -91,7 +86,7 @@ std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int qu
     case SideStatus::kNoNose: warn(canvas, "no nose", line); break;
     case SideStatus::kNoLip: warn(canvas, "no upper lip", line); break;
   }
-  return encoded(canvas, quality);
+  return encode_jpeg(canvas, quality);
 }
 
 }  // namespace lipdrive

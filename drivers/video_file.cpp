@@ -1,0 +1,97 @@
+#include "drivers/video_file.hpp"
+
+#include "drivers/ffmpeg_handles.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+namespace lipdrive {
+
+using ffmpeg::error_text;
+
+/// The demuxer, the decoder and the packet and picture they share.
+struct VideoFile::Decoder {
+  std::string name;
+  ffmpeg::Format format;
+  ffmpeg::Codec codec;
+  ffmpeg::Packet packet{av_packet_alloc()};
+  ffmpeg::Frame picture{av_frame_alloc()};
+  ffmpeg::LumaConverter luma;
+  int stream = -1;
+  bool draining = false;  // the demuxer is at its end; the decoder gives back what it holds
+
+  [[noreturn]] void fail(const std::string& reason) const {
+    throw MediaError(fmt::format("{}: {}", name, reason));
+  }
+
+  /// The next decoded picture; false at the end (or where a damaged file stops decoding).
+  bool next() {
+    for (;;) {
+      const int received = avcodec_receive_frame(codec.get(), picture.get());
+      if (received == 0) return true;
+      if (received != AVERROR(EAGAIN)) return false;  // AVERROR_EOF, or the decoder gave up
+      if (draining) return false;
+      const int read = av_read_frame(format.get(), packet.get());
+      if (read < 0) {
+        draining = true;
+        avcodec_send_packet(codec.get(), nullptr);
+        continue;
+      }
+      // A packet the decoder rejects is skipped, as a player does; the rest still decodes.
+      if (packet->stream_index == stream) avcodec_send_packet(codec.get(), packet.get());
+      av_packet_unref(packet.get());
+    }
+  }
+};
+
+VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_unique<Decoder>()) {
+  Decoder& d = *decoder_;
+  d.name = file.string();
+  if (!d.packet || !d.picture) d.fail("out of memory");
+  AVFormatContext* format = nullptr;
+  if (const int e = avformat_open_input(&format, d.name.c_str(), nullptr, nullptr); e < 0)
+    d.fail(fmt::format("cannot open: {}", error_text(e)));
+  d.format.reset(format);
+  if (const int e = avformat_find_stream_info(format, nullptr); e < 0)
+    d.fail(fmt::format("cannot read the streams: {}", error_text(e)));
+  const AVCodec* codec = nullptr;
+  d.stream = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, &codec, 0);
+  if (d.stream < 0 || codec == nullptr) d.fail("not a video or image that can be decoded");
+  AVStream* video = format->streams[d.stream];
+  d.codec.reset(avcodec_alloc_context3(codec));
+  if (!d.codec) d.fail("out of memory");
+  if (const int e = avcodec_parameters_to_context(d.codec.get(), video->codecpar); e < 0)
+    d.fail(fmt::format("bad video parameters: {}", error_text(e)));
+  d.codec->thread_count = 0;  // as many decoding threads as the codec can use
+  if (const int e = avcodec_open2(d.codec.get(), codec, nullptr); e < 0)
+    d.fail(fmt::format("cannot open the video decoder: {}", error_text(e)));
+
+  const AVRational rate = av_guess_frame_rate(format, video, nullptr);
+  frame_rate_ = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 0;
+  if (video->nb_frames > 0) {
+    frame_count_ = video->nb_frames;
+  } else if (frame_rate_ > 0 && format->duration > 0) {
+    frame_count_ = std::llround(static_cast<double>(format->duration) / AV_TIME_BASE * frame_rate_);
+  }
+}
+
+VideoFile::~VideoFile() = default;
+
+bool VideoFile::read(cv::Mat& gray) {
+  Decoder& d = *decoder_;
+  if (!d.next()) return false;
+  const bool converted = d.luma.convert(*d.picture, gray);
+  av_frame_unref(d.picture.get());
+  if (!converted) d.fail("cannot convert the picture to luma");
+  return true;
+}
+
+cv::Mat read_gray_image(const std::filesystem::path& file) {
+  VideoFile image(file);
+  cv::Mat gray;
+  if (!image.read(gray)) throw MediaError(fmt::format("{}: cannot decode the image", file.string()));
+  return gray;
+}
+
+}  // namespace lipdrive

@@ -1,0 +1,155 @@
+// Pictures through FFmpeg's libraries (drivers/video_file.hpp, drivers/image_codec.hpp),
+// checked against OpenCV's own codecs, which the tests still link: the luma the tracker sees
+// from a replayed clip, an image, a camera's MJPEG frame; the JPEG previews and PNG files.
+#include "drivers/image_codec.hpp"
+#include "drivers/video_file.hpp"
+#include "fixture_paths.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+namespace lipdrive {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+double mean_abs_difference(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat difference;
+  cv::absdiff(a, b, difference);
+  return cv::mean(difference)[0];
+}
+
+/// A BGR test card: gradients, edges and text, so codecs have something to get wrong.
+cv::Mat test_card() {
+  cv::Mat bgr(240, 320, CV_8UC3);
+  for (int y = 0; y < bgr.rows; ++y)
+    for (int x = 0; x < bgr.cols; ++x)
+      bgr.at<cv::Vec3b>(y, x) = {static_cast<uchar>(x * 255 / 319), static_cast<uchar>(y * 255 / 239),
+                                 static_cast<uchar>((x + y) % 256)};
+  cv::rectangle(bgr, {40, 40, 120, 80}, cv::Scalar(255, 255, 255), cv::FILLED);
+  cv::putText(bgr, "lipdrive", {60, 200}, cv::FONT_HERSHEY_SIMPLEX, 1.5, cv::Scalar(0, 0, 0), 3);
+  return bgr;
+}
+
+cv::Mat gray_of(const cv::Mat& bgr) {
+  cv::Mat gray;
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  return gray;
+}
+
+class MediaFilesTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("lipdrive_media_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(MediaFilesTest, AClipsLumaIsWhatOpenCvsDecoderGives) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  VideoFile video(test::kClip);
+  cv::VideoCapture reference(test::kClip.string(), cv::CAP_FFMPEG);
+  ASSERT_TRUE(reference.isOpened());
+  EXPECT_DOUBLE_EQ(video.frame_rate(), reference.get(cv::CAP_PROP_FPS));
+  EXPECT_EQ(video.frame_count(), static_cast<std::int64_t>(reference.get(cv::CAP_PROP_FRAME_COUNT)));
+  cv::Mat gray, bgr;
+  int frames = 0;
+  double worst = 0;
+  while (reference.read(bgr)) {
+    ASSERT_TRUE(video.read(gray)) << "frame " << frames;
+    ASSERT_EQ(gray.size(), bgr.size());
+    ASSERT_EQ(gray.type(), CV_8UC1);
+    worst = std::max(worst, mean_abs_difference(gray, gray_of(bgr)));
+    ++frames;
+  }
+  EXPECT_FALSE(video.read(gray)) << "both end together";
+  EXPECT_EQ(frames, video.frame_count());
+  // Full-range luma either way; OpenCV goes through BGR and rounds twice.
+  EXPECT_LT(worst, 1.0) << "mean absolute luma difference, worst frame";
+}
+
+TEST_F(MediaFilesTest, ImagesReadAsOpenCvReadsThem) {
+  const cv::Mat card = test_card();
+  const fs::path png = dir_ / "card.png", jpeg = dir_ / "card.jpg", pgm = dir_ / "card.pgm";
+  ASSERT_TRUE(cv::imwrite(png.string(), card));
+  ASSERT_TRUE(cv::imwrite(jpeg.string(), card, {cv::IMWRITE_JPEG_QUALITY, 90}));
+  ASSERT_TRUE(cv::imwrite(pgm.string(), gray_of(card)));
+  EXPECT_LT(mean_abs_difference(read_gray_image(png), cv::imread(png.string(), cv::IMREAD_GRAYSCALE)), 0.6);
+  EXPECT_LT(mean_abs_difference(read_gray_image(jpeg), cv::imread(jpeg.string(), cv::IMREAD_GRAYSCALE)), 1.0);
+  EXPECT_EQ(mean_abs_difference(read_gray_image(pgm), gray_of(card)), 0.0);
+}
+
+TEST_F(MediaFilesTest, UnreadableImagesAreErrorsNamingTheFile) {
+  const fs::path fake = dir_ / "fake.png";
+  std::ofstream(fake) << "not an image\n";
+  for (const fs::path& file : {fake, dir_ / "missing.png"}) {
+    try {
+      read_gray_image(file);
+      ADD_FAILURE() << file << " was read";
+    } catch (const MediaError& e) {
+      EXPECT_THAT(e.what(), HasSubstr(file.string()));
+    }
+  }
+}
+
+TEST_F(MediaFilesTest, JpegDecoderGivesTheLumaAndNeverAStaleFrame) {
+  const cv::Mat card = test_card();
+  std::vector<uchar> bytes;
+  ASSERT_TRUE(cv::imencode(".jpg", card, bytes, {cv::IMWRITE_JPEG_QUALITY, 90}));
+  JpegDecoder decoder;
+  cv::Mat gray;
+  ASSERT_TRUE(decoder.decode(bytes, gray));
+  EXPECT_LT(mean_abs_difference(gray, cv::imdecode(bytes, cv::IMREAD_GRAYSCALE)), 1.0);
+
+  const std::vector<std::uint8_t> garbage(4000, 0x5a);
+  EXPECT_FALSE(decoder.decode(garbage, gray));
+  EXPECT_TRUE(gray.empty()) << "a frame that is not a JPEG leaves no picture behind";
+  ASSERT_TRUE(decoder.decode(bytes, gray)) << "the decoder recovers on the next good frame";
+  EXPECT_EQ(gray.size(), card.size());
+}
+
+TEST_F(MediaFilesTest, JpegPreviewsDecodeToTheImageAndShrinkWithQuality) {
+  const cv::Mat card = test_card();
+  const std::string fine = encode_jpeg(card, 90), coarse = encode_jpeg(card, 20);
+  const cv::Mat decoded = cv::imdecode(std::vector<uchar>(fine.begin(), fine.end()), cv::IMREAD_COLOR);
+  ASSERT_EQ(decoded.size(), card.size());
+  EXPECT_LT(mean_abs_difference(gray_of(decoded), gray_of(card)), 3.0);
+  EXPECT_LT(coarse.size(), fine.size());
+  const std::string gray = encode_jpeg(gray_of(card), 80);
+  EXPECT_EQ(cv::imdecode(std::vector<uchar>(gray.begin(), gray.end()), cv::IMREAD_GRAYSCALE).size(), card.size());
+}
+
+TEST_F(MediaFilesTest, PngFilesHoldTheImageExactly) {
+  const cv::Mat card = test_card();
+  const fs::path colour = dir_ / "colour.png", gray = dir_ / "gray.png";
+  write_png(colour, card);
+  write_png(gray, gray_of(card));
+  cv::Mat back = cv::imread(colour.string(), cv::IMREAD_UNCHANGED), difference;
+  ASSERT_EQ(back.type(), CV_8UC3);
+  cv::absdiff(back, card, difference);
+  EXPECT_EQ(cv::countNonZero(difference.reshape(1)), 0);
+  EXPECT_EQ(mean_abs_difference(cv::imread(gray.string(), cv::IMREAD_UNCHANGED), gray_of(card)), 0.0);
+  try {
+    write_png(dir_ / "no" / "such" / "dir.png", card);
+    ADD_FAILURE() << "wrote into a missing folder";
+  } catch (const MediaError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("dir.png"));
+  }
+}
+
+}  // namespace
+}  // namespace lipdrive
