@@ -2,6 +2,10 @@
 
 #include "drivers/ffmpeg_handles.hpp"
 
+extern "C" {
+#include <libavutil/opt.h>
+}
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -17,7 +21,7 @@ namespace {
 using ffmpeg::error_text;
 
 /// A picture in `format` converted from an 8-bit gray or BGR cv::Mat.
-ffmpeg::Frame picture_of(const cv::Mat& image, AVPixelFormat format, int source_range) {
+ffmpeg::Frame picture_of(const cv::Mat& image, AVPixelFormat format) {
   if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3) || image.empty())
     throw MediaError("only 8-bit gray or BGR images can be encoded");
   ffmpeg::Frame picture(av_frame_alloc());
@@ -27,11 +31,23 @@ ffmpeg::Frame picture_of(const cv::Mat& image, AVPixelFormat format, int source_
   picture->height = image.rows;
   if (av_frame_get_buffer(picture.get(), 0) < 0) throw MediaError("out of memory");
   const AVPixelFormat from = image.channels() == 1 ? AV_PIX_FMT_GRAY8 : AV_PIX_FMT_BGR24;
-  SwsContext* scaler = sws_getContext(image.cols, image.rows, from, image.cols, image.rows,
-                                      ffmpeg::LumaConverter::without_range(format), SWS_POINT, nullptr, nullptr, nullptr);
-  if (scaler == nullptr) throw MediaError("cannot convert the image for its encoder");
-  const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);
-  sws_setColorspaceDetails(scaler, coefficients, 1, coefficients, source_range, 0, 1 << 16, 1 << 16);
+  // Full range out (JPEG's, and a PNG's), set before the scaler is initialised: set after, an
+  // RGB -> Y'CbCr scaler keeps video range.
+  SwsContext* scaler = sws_alloc_context();
+  if (scaler == nullptr) throw MediaError("out of memory");
+  av_opt_set_int(scaler, "srcw", image.cols, 0);
+  av_opt_set_int(scaler, "srch", image.rows, 0);
+  av_opt_set_int(scaler, "src_format", from, 0);
+  av_opt_set_int(scaler, "dstw", image.cols, 0);
+  av_opt_set_int(scaler, "dsth", image.rows, 0);
+  av_opt_set_int(scaler, "dst_format", ffmpeg::LumaConverter::without_range(format), 0);
+  av_opt_set_int(scaler, "sws_flags", SWS_POINT, 0);
+  av_opt_set_int(scaler, "src_range", 1, 0);
+  av_opt_set_int(scaler, "dst_range", 1, 0);
+  if (sws_init_context(scaler, nullptr, nullptr) < 0) {
+    sws_freeContext(scaler);
+    throw MediaError("cannot convert the image for its encoder");
+  }
   const std::uint8_t* planes[] = {image.data};
   const int strides[] = {static_cast<int>(image.step[0])};
   sws_scale(scaler, planes, strides, 0, image.rows, picture->data, picture->linesize);
@@ -110,14 +126,14 @@ std::string encode_jpeg(const cv::Mat& image, int quality) {
   const int q = std::clamp(quality, 1, 100);
   const double percent = q < 50 ? 5000.0 / q : 200.0 - 2.0 * q;
   const int qscale = std::clamp(static_cast<int>(std::lround(percent / 25.0)), 1, 31);
-  ffmpeg::Frame picture = picture_of(image, AV_PIX_FMT_YUVJ420P, 1);
+  ffmpeg::Frame picture = picture_of(image, AV_PIX_FMT_YUVJ420P);
   return encode("mjpeg", *picture, qscale);
 }
 
 void write_png(const std::filesystem::path& file, const cv::Mat& image) {
   std::string bytes;
   try {
-    ffmpeg::Frame picture = picture_of(image, image.channels() == 1 ? AV_PIX_FMT_GRAY8 : AV_PIX_FMT_RGB24, 1);
+    ffmpeg::Frame picture = picture_of(image, image.channels() == 1 ? AV_PIX_FMT_GRAY8 : AV_PIX_FMT_RGB24);
     bytes = encode("png", *picture, 0);
   } catch (const MediaError& e) {
     throw MediaError(fmt::format("{}: {}", file.string(), e.what()));
