@@ -1,6 +1,7 @@
 // Per-frame fit time (docs/method.md 3) for the default landmark set F4, 20 and 40 components,
 // 1 and 3 iterations, warm-started frame to frame as the pipeline does; the ICT head's
 // expression fit; the viseme weights of a fitted frame.
+#include "build_paths.hpp"
 #include "core/fitting.hpp"
 #include "core/statistics.hpp"
 #include "core/viseme_weights.hpp"
@@ -23,7 +24,7 @@ namespace {
 // (20 or 40; fewer components are zero-padded to it), else a random model of that size:
 // the fit's cost depends only on the compiled size.
 MorphableModel bench_model(int components) {
-  const std::filesystem::path path = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+  const std::filesystem::path path = std::filesystem::path(test::kModelDir) / "default.lpm";
   if (std::filesystem::exists(path)) {
     MorphableModel model = load_model_file(path);
     const int used = std::min(model.num_components(), components);
@@ -82,7 +83,7 @@ BENCHMARK(BM_FitF4)
 // (arg 4): frames of random expressions (each shape at a random weight with probability 0.25)
 // with 1 px noise, ~80 px between the outer eye corners, warm-started frame to frame.
 void BM_FitIct(benchmark::State& state) {
-  const MorphableModel model = load_model_file(std::filesystem::path(LIPDRIVE_MODEL_DIR) / "ict_face_light.lpm");
+  const MorphableModel model = load_model_file(std::filesystem::path(test::kModelDir) / "ict_face_light.lpm");
   const LandmarkSet set = static_cast<LandmarkSet>(state.range(0));
   const Fitter fitter(model, set);
   std::mt19937 rng(3);
@@ -134,7 +135,7 @@ BENCHMARK(BM_FitIct)
 // the image over F4, then the NNLS), on fitted frames cycling through the poses. Per call,
 // core/statistics' nearest rank.
 void BM_VisemePoseMatch(benchmark::State& state) {
-  const std::filesystem::path path = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+  const std::filesystem::path path = std::filesystem::path(test::kModelDir) / "default.lpm";
   if (!std::filesystem::exists(path)) {
     state.SkipWithError("the default model is not built");
     return;

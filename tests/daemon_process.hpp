@@ -1,6 +1,7 @@
 // A `lipdrive run` child process for the daemon tests.
 #pragma once
 
+#include "build_paths.hpp"
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -36,7 +37,7 @@ class DaemonProcess {
   DaemonProcess(const std::filesystem::path& config, const std::filesystem::path& log,
                 const std::string& extra_args = "", const std::vector<std::string>& environment = {})
       : log_(log) {
-    std::vector<std::string> args = {LIPDRIVE_BINARY, "run", "--config", config.string()};
+    std::vector<std::string> args = {kLipdrive, "run", "--config", config.string()};
     for (std::size_t start = 0; start < extra_args.size();) {
       const std::size_t end = std::min(extra_args.find(' ', start), extra_args.size());
       if (end > start) args.push_back(extra_args.substr(start, end - start));

@@ -10,6 +10,7 @@
 // LIPDRIVE_REQUIRE_FIXTURES=1 (.ci/run sets it), so a broken generator cannot pass as a skip.
 #pragma once
 
+#include "build_paths.hpp"
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -24,7 +25,7 @@ namespace lipdrive::test {
 /// ../shared/fixtures beside the checkout, or $LIPDRIVE_SHARED_DIR/fixtures.
 inline std::filesystem::path shared_fixtures() {
   const char* dir = std::getenv("LIPDRIVE_SHARED_DIR");
-  return dir && *dir ? std::filesystem::path(dir) / "fixtures" : std::filesystem::path(LIPDRIVE_SHARED_FIXTURES);
+  return dir && *dir ? std::filesystem::path(dir) / "fixtures" : std::filesystem::path(kSharedFixtures);
 }
 
 /// LIPDRIVE_REQUIRE_FIXTURES=1: a missing generated file is a failure, not a skip.
@@ -33,8 +34,8 @@ inline bool fixtures_required() {
   return value && std::string_view(value) == "1";
 }
 
-inline const std::filesystem::path kModel = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
-inline const std::filesystem::path kClip = std::filesystem::path(LIPDRIVE_FIXTURE_DIR) / "talking_face.avi";
+inline const std::filesystem::path kModel = std::filesystem::path(kModelDir) / "default.lpm";
+inline const std::filesystem::path kClip = std::filesystem::path(kFixtureDir) / "talking_face.avi";
 
 /// [model] and [camera] of a daemon configuration replaying kClip in real time at 60 fps,
 /// looped; more [camera] keys may follow.

@@ -3,6 +3,7 @@
 // shapes held at 0, and the four weights a model without expression shapes derives from the
 // signals. The weights of a fit are tested in test_expression_fit.cpp.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "core/arkit.hpp"
 #include "core/drive_signals.hpp"
 #include "core/fitting.hpp"
@@ -19,7 +20,7 @@ namespace lipdrive {
 namespace {
 
 const MorphableModel& ict_model() {
-  static const MorphableModel model = load_model_file(std::filesystem::path(LIPDRIVE_MODEL_DIR) / "ict_face_light.lpm");
+  static const MorphableModel model = load_model_file(std::filesystem::path(test::kModelDir) / "ict_face_light.lpm");
   return model;
 }
 
@@ -66,8 +67,8 @@ TEST(ArkitMap, EveryIctShapeMapsAndNoAppleNameTwice) {
   EXPECT_EQ(sources("jawLeft"), "jawLeft -");
   EXPECT_EQ(sources("browInnerUp"), "browInnerUp_L browInnerUp_R");
   // Held at 0: what a 68-point fit cannot observe, and the name without a shape.
-  for (const char* held : {"cheekPuff", "tongueOut", "eyeLookDownLeft", "eyeLookInRight", "eyeLookOutLeft",
-                           "eyeLookUpRight"})
+  for (const char* held :
+       {"cheekPuff", "tongueOut", "eyeLookDownLeft", "eyeLookInRight", "eyeLookOutLeft", "eyeLookUpRight"})
     EXPECT_EQ(sources(held), "- -") << held;
   int mapped = 0;
   for (int a = 0; a < kNumArkit; ++a) mapped += map.sources(a)[0] >= 0;
@@ -128,7 +129,7 @@ TEST(ArkitSignals, WithoutExpressionShapesFourMouthWeightsComeFromTheSignals) {
   for (int a = 0; a < kNumArkit; ++a) oh[arkit_signal(a)] = 0.7f;  // the last frame's
   set_arkit_signals(map, {}, oh);
   EXPECT_FLOAT_EQ(weight(oh, "jawOpen"), 0.8f);
-  EXPECT_FLOAT_EQ(weight(oh, "mouthFunnel"), 0.4f);  // forward and open
+  EXPECT_FLOAT_EQ(weight(oh, "mouthFunnel"), 0.4f);    // forward and open
   EXPECT_NEAR(weight(oh, "mouthPucker"), 0.1f, 1e-6);  // forward and closed
   EXPECT_FLOAT_EQ(weight(oh, "mouthClose"), 0);
   for (const char* other : {"mouthSmileLeft", "eyeBlinkRight", "browInnerUp", "tongueOut"})

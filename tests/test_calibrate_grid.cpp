@@ -2,6 +2,7 @@
 // then the pipeline drives an open channel with that profile. The performer's mouth must use
 // the whole channel and come back to rest in the closing silence. With the ICT head, the
 // calibration fits the performer's identity, and `lipdrive process --config` fits on it.
+#include "build_paths.hpp"
 #include "command_run.hpp"
 #include "core/model_format.hpp"
 #include "core/statistics.hpp"
@@ -62,7 +63,7 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
 
   // The first 15 tracked frames are the opening silence: the neutral pose.
   const std::string command =
-      fmt::format("{} calibrate --config {} --performer grid --input {} --neutral-frames 15 2>&1", LIPDRIVE_BINARY,
+      fmt::format("{} calibrate --config {} --performer grid --input {} --neutral-frames 15 2>&1", test::kLipdrive,
                   config.string(), kTake.string());
   std::FILE* pipe = ::popen(command.c_str(), "r");
   ASSERT_NE(pipe, nullptr);
@@ -130,14 +131,13 @@ double median_quality(const fs::path& table) {
 
 TEST(CalibrateGrid, TheIctHeadKeepsThePerformersIdentityAndTheFitUsesIt) {
   LIPDRIVE_SKIP_WITHOUT_SHARED(kTake);
-  const fs::path ict = fs::path(LIPDRIVE_MODEL_DIR) / "ict_face_light.lpm";
+  const fs::path ict = fs::path(test::kModelDir) / "ict_face_light.lpm";
   const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_test_calibrate_ict_{}", ::getpid());
   fs::create_directories(dir);
   // Calibrated without a performer named (the profile does not exist yet), then fitted with one
   // and without.
-  const std::string model_lines =
-      fmt::format("[model]\nfile = \"{}\"\nlandmark_set = \"F5\"\n[camera]\ninput = \"{}\"\n", ict.string(),
-                  kTake.string());
+  const std::string model_lines = fmt::format(
+      "[model]\nfile = \"{}\"\nlandmark_set = \"F5\"\n[camera]\ninput = \"{}\"\n", ict.string(), kTake.string());
   std::ofstream(dir / "calibrate.toml") << model_lines
                                         << fmt::format("[performer]\nprofiles_dir = \"{}\"\n", dir.string());
   const fs::path config = dir / "lipdrive.toml";
@@ -145,9 +145,9 @@ TEST(CalibrateGrid, TheIctHeadKeepsThePerformersIdentityAndTheFitUsesIt) {
                         << fmt::format("[performer]\nname = \"grid\"\nprofiles_dir = \"{}\"\n", dir.string());
   std::ofstream(dir / "mean.toml") << model_lines;
 
-  const test::CommandRun calibrate = test::run_command(fmt::format(
-      "{} calibrate --config {} --performer grid --input {} --neutral-frames 15", LIPDRIVE_BINARY,
-      (dir / "calibrate.toml").string(), kTake.string()));
+  const test::CommandRun calibrate =
+      test::run_command(fmt::format("{} calibrate --config {} --performer grid --input {} --neutral-frames 15",
+                                    test::kLipdrive, (dir / "calibrate.toml").string(), kTake.string()));
   ASSERT_EQ(calibrate.exit_code, 0) << calibrate.output;
   EXPECT_THAT(calibrate.output, ::testing::HasSubstr("identity: 20 components from 15 neutral frames"));
   const PerformerProfile profile = load_profile(dir / "grid.toml");
@@ -157,9 +157,10 @@ TEST(CalibrateGrid, TheIctHeadKeepsThePerformersIdentityAndTheFitUsesIt) {
   EXPECT_GT(profile.identity->vector(20).norm(), 0.1) << "a face other than the mean";
 
   // The same take fitted on the performer's identity and on the mean face.
-  for (const auto& [settings, table] : {std::pair{config, dir / "grid.csv"}, std::pair{dir / "mean.toml", dir / "mean.csv"}}) {
+  for (const auto& [settings, table] :
+       {std::pair{config, dir / "grid.csv"}, std::pair{dir / "mean.toml", dir / "mean.csv"}}) {
     const test::CommandRun process = test::run_command(fmt::format(
-        "{} process {} --config {} --out {}", LIPDRIVE_BINARY, kTake.string(), settings.string(), table.string()));
+        "{} process {} --config {} --out {}", test::kLipdrive, kTake.string(), settings.string(), table.string()));
     ASSERT_EQ(process.exit_code, 0) << process.output;
   }
   const double with_identity = median_quality(dir / "grid.csv"), mean_face = median_quality(dir / "mean.csv");

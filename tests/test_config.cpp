@@ -1,5 +1,6 @@
 // The daemon's configuration file: the reference file is valid, and every kind of mistake
 // is reported with the file, the key and the reason.
+#include "build_paths.hpp"
 #include "command_run.hpp"
 #include "firmware_app/config/config.hpp"
 #include "fixture_paths.hpp"
@@ -168,7 +169,7 @@ TEST_F(ConfigTest, SyntaxErrorsNameTheLine) {
 }
 
 test::CommandRun run_lipdrive(const std::string& args) {
-  return test::run_command(std::string(LIPDRIVE_BINARY) + " " + args);
+  return test::run_command(std::string(test::kLipdrive) + " " + args);
 }
 
 constexpr const char* kJawChannel =
@@ -285,7 +286,7 @@ TEST_F(ConfigTest, DmxFootprintMistakesNameTheKey) {
 
 TEST_F(ConfigTest, ReferenceFileIsValid) {
   // The shipped file: default model and the default clip next to the binary.
-  const fs::path reference = fs::path(LIPDRIVE_SOURCE_DIR) / "config" / "lipdrive.toml";
+  const fs::path reference = fs::path(test::kSourceDir) / "config" / "lipdrive.toml";
   const test::CommandRun run = run_lipdrive("check-config " + reference.string());
   EXPECT_EQ(run.exit_code, 0) << run.output;
   EXPECT_THAT(run.output, HasSubstr(reference.string() + ": ok"));

@@ -3,6 +3,7 @@
 // the camera frame was captured, the take's first line names the first row's timecode, the
 // Modbus map carries it; the system clock at 29.97 drop-frame counts up across a take; LTC
 // absent or garbled is a status-line warning.
+#include "build_paths.hpp"
 #include "command_run.hpp"
 #include "core/timecode.hpp"
 #include "daemon_process.hpp"
@@ -190,7 +191,7 @@ TEST(DaemonTimecode, LtcFromASoundCardThatIsAbsentLeavesFramesUnstampedAndCheckC
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << config_with("source = \"ltc\"\nltc_input = \"alsa\"\ndevice = \"lipdrive_no_such_device\"",
                                        dir.path() / "takes", test::free_port());
-  const test::CommandRun check = test::run_command(fmt::format("{} check-config {}", LIPDRIVE_BINARY, config.string()));
+  const test::CommandRun check = test::run_command(fmt::format("{} check-config {}", test::kLipdrive, config.string()));
   EXPECT_EQ(check.exit_code, 78) << check.output;
   EXPECT_NE(check.output.find("key timecode.device: alsa:lipdrive_no_such_device: cannot open the capture device"),
             std::string::npos)

@@ -1,5 +1,6 @@
 // The CSV reader, GRID alignments, and the `lipdrive eval` and `lipdrive plot`
 // commands run as a user runs them (the built binary on small files).
+#include "build_paths.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "firmware_app/tables/grid_align.hpp"
@@ -59,7 +60,7 @@ class EvalPlotTest : public ::testing::Test {
 
   /// Runs the lipdrive binary with the given arguments (each single-quoted).
   RunResult run(const std::vector<std::string>& args) const {
-    std::string command = LIPDRIVE_BINARY;
+    std::string command = test::kLipdrive;
     for (const auto& arg : args) command += " '" + arg + "'";
     const fs::path err_path = dir_ / "stderr.txt";
     command += " 2>'" + err_path.string() + "'";

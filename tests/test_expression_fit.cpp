@@ -1,7 +1,9 @@
 // The fit of a model with expression shapes (core/fitting.hpp) on the ICT head: expression
 // weights from synthetic frames of a random identity, the identity from noisy neutral frames,
-// the bounds, no allocation per frame, and the fit's weights under Apple's ARKit names. Figures are printed and recorded as properties.
+// the bounds, no allocation per frame, and the fit's weights under Apple's ARKit names. Figures are printed and
+// recorded as properties.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "core/arkit.hpp"
 #include "core/drive_signals.hpp"
 #include "core/fitting.hpp"
@@ -22,7 +24,7 @@ namespace lipdrive {
 namespace {
 
 const MorphableModel& ict_model() {
-  static const MorphableModel model = load_model_file(std::filesystem::path(LIPDRIVE_MODEL_DIR) / "ict_face_light.lpm");
+  static const MorphableModel model = load_model_file(std::filesystem::path(test::kModelDir) / "ict_face_light.lpm");
   return model;
 }
 
@@ -202,9 +204,7 @@ TEST(ExpressionFit, ArkitWeightsOfTheFitCarryApplesNames) {
     }
     return signals;
   };
-  const auto weight = [](const DriveSignals& s, std::string_view name) {
-    return s[arkit_signal(*arkit_index(name))];
-  };
+  const auto weight = [](const DriveSignals& s, std::string_view name) { return s[arkit_signal(*arkit_index(name))]; };
   const DriveSignals jaw = arkit_of({{"jawOpen", 0.5}});
   EXPECT_NEAR(weight(jaw, "jawOpen"), 0.5, 0.1);
   const DriveSignals smile = arkit_of({{"mouthSmile_L", 0.7}});

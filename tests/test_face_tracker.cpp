@@ -1,6 +1,7 @@
 // The allocation-free ERT predictor against dlib's own, and the FaceTracker's
 // acquire -> track -> lose -> re-acquire cycle.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "core/face_check.hpp"
 #include "core/face_tracker.hpp"
 #include "core/lip_contact.hpp"
@@ -34,7 +35,7 @@ namespace lipdrive {
 namespace {
 
 const std::filesystem::path kGridDir = test::shared_fixtures() / "grid";
-const std::filesystem::path kFixtureDir = LIPDRIVE_FIXTURE_DIR;
+const std::filesystem::path kFixtureDir = test::kFixtureDir;
 
 std::vector<cv::Mat> read_gray_frames(const std::filesystem::path& video) {
   std::vector<cv::Mat> frames;

@@ -1,5 +1,6 @@
 // The 1€ filter (core/one_euro_filter) and the facial indices with the performer <-> model
 // compatibility check (core/facial_indices, docs/method.md 6).
+#include "build_paths.hpp"
 #include "core/facial_indices.hpp"
 #include "core/one_euro_filter.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -186,7 +187,7 @@ TEST(FacialIndices, WarnsOnlyWhenVerticalMouthHeightIsTwoClassesApart) {
 }
 
 TEST(FacialIndices, DefaultModelNeutralPose) {
-  const auto path = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+  const auto path = std::filesystem::path(test::kModelDir) / "default.lpm";
   LIPDRIVE_REQUIRE_BUILT(path);
   const FacialMeasures m = facial_measures(frontal_neutral_landmarks(load_model_file(path)));
   const MouthClasses classes = mouth_classes(m);

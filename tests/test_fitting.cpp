@@ -1,3 +1,4 @@
+#include "build_paths.hpp"
 #include "core/fitting.hpp"
 #include "core/mouth_measures.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -171,7 +172,7 @@ TEST(Fitter, RejectsBadSettings) {
 // (b) Mouth measures on the default model: 1 px landmark noise on a face ~80 px between
 // the outer eye corners, default settings, cold start, over every pose of the model.
 TEST(Fitter, MouthMeasuresOfTheDefaultModelUnderNoise) {
-  const std::filesystem::path path = std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm";
+  const std::filesystem::path path = std::filesystem::path(test::kModelDir) / "default.lpm";
   LIPDRIVE_REQUIRE_BUILT(path);
   const MorphableModel model = load_model_file(path);
   const Fitter fitter(model, kDefaultLandmarkSet);

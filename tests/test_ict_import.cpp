@@ -1,5 +1,6 @@
 // The ICT importer (sim/ict_import) on a small generated ICT-style directory, its errors
 // naming the file, and the committed model against a fresh import of ../shared's ICT files.
+#include "build_paths.hpp"
 #include "core/model_format.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "fixture_paths.hpp"
@@ -168,7 +169,7 @@ TEST_F(IctImportTest, MissingOrBrokenIndexAndNeutralFilesAreNamed) {
 TEST(IctModel, TheCommittedModelIsAFreshImportOfTheIctFiles) {
   const fs::path ict = test::shared_fixtures().parent_path() / "models" / "ict-facekit" / "FaceXModel";
   LIPDRIVE_SKIP_WITHOUT_SHARED(ict / "vertex_indices.json");
-  const fs::path committed = fs::path(LIPDRIVE_SOURCE_DIR) / "models" / "ict_face_light.lpm";
+  const fs::path committed = fs::path(test::kSourceDir) / "models" / "ict_face_light.lpm";
   const MorphableModel model = load_model_file(committed);
   IctImportOptions options;
   options.identity_modes = model.num_components();

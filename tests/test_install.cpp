@@ -1,5 +1,6 @@
 // What a studio gets: `cmake --install` puts the product in place and no developer tool, and
 // `lipdrive --help` offers no developer command (they are `lipdrive-dev`'s).
+#include "build_paths.hpp"
 #include "command_run.hpp"
 
 #include <gmock/gmock.h>
@@ -30,11 +31,11 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
   fs::remove_all(root);
   // DESTDIR as well as the prefix: the configuration's destination is absolute (/etc/... or
   // <prefix>/etc/...), and nothing may land outside the temporary folder.
-  const CommandRun install = run_command("DESTDIR=" + root.string() + " " + LIPDRIVE_CMAKE + " --install " +
-                                         LIPDRIVE_BUILD_DIR + " --prefix /opt/lipdrive");
+  const CommandRun install = run_command("DESTDIR=" + root.string() + " " + lipdrive::test::kCmake + " --install " +
+                                         lipdrive::test::kBuildDir + " --prefix /opt/lipdrive");
   ASSERT_EQ(install.exit_code, 0) << install.output;
 
-  std::ifstream manifest(fs::path(LIPDRIVE_BUILD_DIR) / "install_manifest.txt");
+  std::ifstream manifest(fs::path(lipdrive::test::kBuildDir) / "install_manifest.txt");
   ASSERT_TRUE(manifest) << "cmake --install writes install_manifest.txt into the build folder";
   std::vector<fs::path> executables;
   int files = 0;
@@ -66,17 +67,17 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
 }
 
 TEST(Install, LipdriveOffersNoDeveloperCommand) {
-  const CommandRun help = run_command(std::string(LIPDRIVE_BINARY) + " --help");
+  const CommandRun help = run_command(std::string(lipdrive::test::kLipdrive) + " --help");
   ASSERT_EQ(help.exit_code, 0) << help.output;
-  const CommandRun model_help = run_command(std::string(LIPDRIVE_BINARY) + " model --help");
+  const CommandRun model_help = run_command(std::string(lipdrive::test::kLipdrive) + " model --help");
   ASSERT_EQ(model_help.exit_code, 0) << model_help.output;
   for (const std::string& command : kDeveloperCommands) {
     EXPECT_THAT(help.output, Not(HasSubstr("  " + command + " "))) << command;
     EXPECT_THAT(model_help.output, Not(HasSubstr("  " + command + " "))) << command;
   }
-  EXPECT_NE(run_command(std::string(LIPDRIVE_BINARY) + " fixture side-view --out /tmp/x").exit_code, 0);
+  EXPECT_NE(run_command(std::string(lipdrive::test::kLipdrive) + " fixture side-view --out /tmp/x").exit_code, 0);
 
-  const CommandRun dev_help = run_command(std::string(LIPDRIVE_DEV_BINARY) + " --help");
+  const CommandRun dev_help = run_command(std::string(lipdrive::test::kLipdriveDev) + " --help");
   ASSERT_EQ(dev_help.exit_code, 0) << dev_help.output;
   for (const char* command : {"fixture", "head", "fit-demo", "ict"})
     EXPECT_THAT(dev_help.output, HasSubstr(std::string("  ") + command + " "));

@@ -1,4 +1,5 @@
 // PCA model builder (core/model_builder) and `lipdrive model build | info`.
+#include "build_paths.hpp"
 #include "core/model_builder.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -155,7 +156,7 @@ class ModelCommandTest : public ::testing::Test {
   // Runs lipdrive with stdout and stderr captured into output_; returns the exit code.
   int run(const std::string& args) {
     const auto log = dir_ / "output.txt";
-    const int status = std::system((std::string(LIPDRIVE_BINARY) + " " + args + " >" + log.string() + " 2>&1").c_str());
+    const int status = std::system((std::string(test::kLipdrive) + " " + args + " >" + log.string() + " 2>&1").c_str());
     std::ostringstream text;
     text << std::ifstream(log).rdbuf();
     output_ = text.str();
@@ -247,7 +248,7 @@ TEST(DefaultHeadModel, ReconstructsEveryPose) {
 }
 
 TEST(DefaultHeadModel, BuiltModelIsCompactAndFullyMapped) {
-  const MorphableModel m = load_model_file(std::filesystem::path(LIPDRIVE_MODEL_DIR) / "default.lpm");
+  const MorphableModel m = load_model_file(std::filesystem::path(test::kModelDir) / "default.lpm");
   const int k = std::min(20, m.num_components());
   EXPECT_GE(m.stddev.head(k).squaredNorm() / m.total_variance, 0.90);
   EXPECT_EQ(m.mapped_landmark_count(), kNumLandmarks);

@@ -4,6 +4,7 @@
 // without the token and carried out with it; clients beyond the bound turned away; a taken port
 // or a bad address logged while the daemon runs on; the state equal to the daemon's counters.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "command_run.hpp"
 #include "core/face_tracker.hpp"
 #include "daemon_process.hpp"
@@ -145,7 +146,7 @@ TEST_P(PreviewOnTheFramePath, AllocatesNothingAndTheFittedLipsLieOnTheTrackedOne
   DriveControl control;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), test::make_processor(), PipelineSettings{}, control);
   if (GetParam().side) {
-    const fs::path side_clip = fs::path(LIPDRIVE_FIXTURE_DIR) / "side_view.avi";
+    const fs::path side_clip = fs::path(test::kFixtureDir) / "side_view.avi";
     LIPDRIVE_REQUIRE_BUILT(side_clip);
     SimulatedCameraOptions side = options;
     side.input = side_clip;
@@ -226,8 +227,7 @@ std::string monitor_config(const fs::path& dir, int port, const std::string& mon
 /// `lipdrive run` with the monitor on a free port, in a folder of its own.
 struct MonitoredDaemon {
   explicit MonitoredDaemon(const std::string& monitor_keys = "", const std::string& tables = "")
-      : port(test::free_port()),
-        process(written(dir.path(), port, monitor_keys, tables), dir.path() / "stderr.txt") {}
+      : port(test::free_port()), process(written(dir.path(), port, monitor_keys, tables), dir.path() / "stderr.txt") {}
   /// "monitor: http://..." in the log: it listens.
   bool listening() { return process.wait_for_log(fmt::format("monitor: http://127.0.0.1:{}/", port)); }
   /// SIGTERM, and a clean exit.
@@ -369,16 +369,17 @@ TEST(MonitorHttp, ServesThePageTheStateThePreviewAndTheHistoryOnLoopback) {
 int pixels_of(const cv::Mat& image, const cv::Vec3b& colour) {
   int n = 0;
   for (auto it = image.begin<cv::Vec3b>(); it != image.end<cv::Vec3b>(); ++it)
-    n += std::abs((*it)[0] - colour[0]) < 50 && std::abs((*it)[1] - colour[1]) < 50 && std::abs((*it)[2] - colour[2]) < 50;
+    n += std::abs((*it)[0] - colour[0]) < 50 && std::abs((*it)[1] - colour[1]) < 50 &&
+         std::abs((*it)[2] - colour[2]) < 50;
   return n;
 }
 
 TEST(MonitorHttp, ShowsTheSideCamerasImageWithItsProfile) {
   LIPDRIVE_REQUIRE_BUILT(kClip);
-  const fs::path side_clip = fs::path(LIPDRIVE_FIXTURE_DIR) / "side_view.avi";
+  const fs::path side_clip = fs::path(test::kFixtureDir) / "side_view.avi";
   LIPDRIVE_REQUIRE_BUILT(side_clip);
-  MonitoredDaemon daemon("",
-                         fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"\nreplay_fps = 60\n", side_clip.string()));
+  MonitoredDaemon daemon(
+      "", fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"\nreplay_fps = 60\n", side_clip.string()));
   ASSERT_TRUE(daemon.listening()) << daemon.process.log();
   auto c = client(daemon.port);
   ASSERT_TRUE(wait_for([&] { return state(c)["frames"]["tracked"].get<int>() > 30; }, 60s)) << daemon.process.log();
@@ -389,7 +390,7 @@ TEST(MonitorHttp, ShowsTheSideCamerasImageWithItsProfile) {
 
   // The side image, newer on every fetch, with the profile drawn on it: the nose in yellow, the
   // upper lip in magenta (the clip's profile is found on nearly every frame).
-  const fs::path artifacts = fs::path(LIPDRIVE_BUILD_DIR) / "test_artifacts" / "monitor";
+  const fs::path artifacts = fs::path(test::kBuildDir) / "test_artifacts" / "monitor";
   fs::create_directories(artifacts);
   std::uint64_t last_sequence = 0;
   int newer = 0, with_profile = 0;
@@ -583,7 +584,7 @@ TEST(MonitorConfig, LoopbackByDefaultAndOnInTheReferenceFile) {
   EXPECT_EQ(Config{}.monitor.address, "127.0.0.1");
   EXPECT_FALSE(Config{}.monitor.enabled) << "a file without [monitor] serves no page";
   // The shipped file (test_config checks that it is valid): its [monitor] table.
-  std::ifstream in(fs::path(LIPDRIVE_SOURCE_DIR) / "config" / "lipdrive.toml");
+  std::ifstream in(fs::path(test::kSourceDir) / "config" / "lipdrive.toml");
   const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
   const std::string table = text.substr(text.find("\n[monitor]\n"));
   const std::string keys = table.substr(0, table.find("\n[", 1));
@@ -609,7 +610,7 @@ TEST(MonitorConfig, BadKeysAreConfigurationErrors) {
     const fs::path file = dir.path() / "bad.toml";
     std::ofstream(file, std::ios::trunc) << test::sim_camera_at_60_fps() << "[monitor]\nenabled = true\n"
                                          << c.keys << "\n";
-    const auto run = test::run_command(fmt::format("{} check-config {}", LIPDRIVE_BINARY, file.string()));
+    const auto run = test::run_command(fmt::format("{} check-config {}", test::kLipdrive, file.string()));
     EXPECT_EQ(run.exit_code, 78) << c.keys << ": " << run.output;
     EXPECT_THAT(run.output, HasSubstr(c.message)) << c.keys;
   }
@@ -617,7 +618,7 @@ TEST(MonitorConfig, BadKeysAreConfigurationErrors) {
 
 // ---------------------------------------------------------------- the page in a browser
 
-const fs::path kBrowserArtifacts = fs::path(LIPDRIVE_BUILD_DIR) / "test_artifacts" / "monitor";
+const fs::path kBrowserArtifacts = fs::path(test::kBuildDir) / "test_artifacts" / "monitor";
 
 /// The part of a screenshot where the element `box` (CSS pixels, scale 1) is.
 cv::Mat region(const cv::Mat& screenshot, const json& box) {

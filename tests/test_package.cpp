@@ -5,9 +5,10 @@
 // must run the installed configuration.
 //
 // The package, its contents list and lintian's output stay in <build>/test_artifacts/package.
+#include "build_paths.hpp"
 #include "command_run.hpp"
-#include "firmware_app/config/paths.hpp"
 #include "daemon_process.hpp"
+#include "firmware_app/config/paths.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -32,7 +33,7 @@ using lipdrive::test::CommandRun;
 using lipdrive::test::run_command;
 using ::testing::HasSubstr;
 
-const fs::path kArtifacts = fs::path(LIPDRIVE_BUILD_DIR) / "test_artifacts" / "package";
+const fs::path kArtifacts = fs::path(lipdrive::test::kBuildDir) / "test_artifacts" / "package";
 
 // Every file the package installs, with its mode.
 const std::map<std::string, unsigned> kExpectedFiles = {
@@ -80,10 +81,10 @@ class Package : public ::testing::Test {
     ASSERT_EQ(arch.exit_code, 0) << arch.output;
     architecture_ = arch.output.substr(0, arch.output.find('\n'));
     // -B: the staging tree and the package go to the artefacts, not into the build tree.
-    build_ = new CommandRun(
-        run_command(fmt::format("cd {} && {} -G DEB --config CPackConfig.cmake -B {}", shell_quote(LIPDRIVE_BUILD_DIR),
-                                LIPDRIVE_CPACK, shell_quote(kArtifacts))));
-    deb_ = kArtifacts / fmt::format("lipdrive_{}_{}.deb", LIPDRIVE_VERSION, architecture_);
+    build_ = new CommandRun(run_command(fmt::format("cd {} && {} -G DEB --config CPackConfig.cmake -B {}",
+                                                    shell_quote(lipdrive::test::kBuildDir), lipdrive::test::kCpack,
+                                                    shell_quote(kArtifacts))));
+    deb_ = kArtifacts / fmt::format("lipdrive_{}_{}.deb", lipdrive::test::kVersion, architecture_);
   }
   static void TearDownTestSuite() {
     delete build_;
@@ -137,12 +138,13 @@ TEST_F(Package, ContentsAreTheProductWithDebiansModesAndOwners) {
 
 TEST_F(Package, ControlDataDeclaresTheLinkedLibrariesAndTheConffile) {
   EXPECT_EQ(field("Package"), "lipdrive");
-  EXPECT_EQ(field("Version"), LIPDRIVE_VERSION);
+  EXPECT_EQ(field("Version"), lipdrive::test::kVersion);
   EXPECT_EQ(field("Architecture"), architecture_);
   const std::string depends = field("Depends");
   RecordProperty("depends", depends);
   // Every shared library the binary links comes from a package named in Depends.
-  const CommandRun needed = run_command(fmt::format("objdump -p {} | awk '/NEEDED/ {{print $2}}'", LIPDRIVE_BINARY));
+  const CommandRun needed =
+      run_command(fmt::format("objdump -p {} | awk '/NEEDED/ {{print $2}}'", lipdrive::test::kLipdrive));
   ASSERT_EQ(needed.exit_code, 0) << needed.output;
   std::istringstream libraries(needed.output);
   int count = 0;

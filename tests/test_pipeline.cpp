@@ -4,6 +4,7 @@
 //
 // Allocations are counted by tests/allocation_counter.cpp on the processing thread alone.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "daemon_process.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
@@ -367,7 +368,7 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
 }
 
 TEST_F(PipelineTest, SideCameraMeasuresProtrusionAndTheFrontCarriesOnWithoutIt) {
-  const fs::path side_clip = fs::path(LIPDRIVE_FIXTURE_DIR) / "side_view.avi";
+  const fs::path side_clip = fs::path(test::kFixtureDir) / "side_view.avi";
   LIPDRIVE_REQUIRE_BUILT(side_clip);
   SimulatedCameraOptions front = clip_options();
   front.real_time = true;

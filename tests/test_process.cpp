@@ -1,5 +1,6 @@
 // Acceptance tests of `lipdrive process`: accuracy on the generated talking face, lip
 // closures on real GRID speech, and bad input that must fail cleanly.
+#include "build_paths.hpp"
 #include "core/arkit.hpp"
 #include "core/calibration.hpp"
 #include "core/face_tracker.hpp"
@@ -33,7 +34,7 @@ namespace {
 namespace fs = std::filesystem;
 
 const fs::path kGridDir = test::shared_fixtures() / "grid";
-const fs::path kFixtureDir = LIPDRIVE_FIXTURE_DIR;
+const fs::path kFixtureDir = test::kFixtureDir;
 
 struct ProcessRun {
   int exit_code = -1;
@@ -43,7 +44,7 @@ struct ProcessRun {
 // Runs `lipdrive process ARGS` and returns its exit code and stderr (kept in `dir`).
 ProcessRun run_process(const std::string& args, const fs::path& dir) {
   const fs::path err = dir / "stderr.txt";
-  const std::string command = std::string(LIPDRIVE_BINARY) + " process " + args + " 2>" + err.string();
+  const std::string command = std::string(test::kLipdrive) + " process " + args + " 2>" + err.string();
   const int status = std::system(command.c_str());
   ProcessRun run;
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -144,10 +145,9 @@ TEST_F(ProcessTest, ArkitColumnsComeFromTheSignalsOrTheFit) {
   LIPDRIVE_REQUIRE_BUILT(video);
   const fs::path pca_out = dir_ / "pca.csv", ict_out = dir_ / "ict.csv";
   ASSERT_EQ(run_process(video.string() + " --out " + pca_out.string(), dir_).exit_code, 0);
-  const fs::path ict = fs::path(LIPDRIVE_MODEL_DIR) / "ict_face_light.lpm";
-  const ProcessRun run =
-      run_process(fmt::format("{} --model {} --landmark-set F5 --out {}", video.string(), ict.string(), ict_out.string()),
-                  dir_);
+  const fs::path ict = fs::path(test::kModelDir) / "ict_face_light.lpm";
+  const ProcessRun run = run_process(
+      fmt::format("{} --model {} --landmark-set F5 --out {}", video.string(), ict.string(), ict_out.string()), dir_);
   ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
   const CsvTable pca = read_csv_table(pca_out), fitted = read_csv_table(ict_out);
   const auto viseme_w = std::find(pca.header.begin(), pca.header.end(), "viseme_W");
@@ -168,11 +168,13 @@ TEST_F(ProcessTest, ArkitColumnsComeFromTheSignalsOrTheFit) {
   }
   const auto highest = [](const CsvTable& table, std::string_view name) {
     double most = 0;  // untracked frames (NaN) skipped
-    for (const double w : numeric_column(table, "arkit_" + std::string(name))) most = std::max(most, std::isnan(w) ? 0 : w);
+    for (const double w : numeric_column(table, "arkit_" + std::string(name)))
+      most = std::max(most, std::isnan(w) ? 0 : w);
     return most;
   };
   EXPECT_GT(highest(pca, "jawOpen"), 0.5);
-  for (const char* other : {"mouthSmileLeft", "browInnerUp", "eyeBlinkRight"}) EXPECT_EQ(highest(pca, other), 0) << other;
+  for (const char* other : {"mouthSmileLeft", "browInnerUp", "eyeBlinkRight"})
+    EXPECT_EQ(highest(pca, other), 0) << other;
 
   // The ICT head: the weights are the fit's, more than the four mouth weights move, and the
   // shapes 68 landmarks cannot show read 0. How well jawOpen follows the opening depends on the

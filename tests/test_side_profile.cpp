@@ -2,6 +2,7 @@
 // rendered in profile (sim/side_view.hpp), whose 3D shape gives the truth; and on the
 // generated fixture clip build/fixtures/side_view.avi with its truth CSV.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "core/metrics.hpp"
 #include "core/side_profile.hpp"
 #include "firmware_app/tables/csv_table.hpp"
@@ -278,7 +279,7 @@ TEST(SideProfile, CalibrationNeedsACompleteProfile) {
 // The generated fixture: every frame measured, calibrated on the opening silence (the
 // first 0.6 s are neutral), compared with the truth of the 3D shape (docs/method.md 5).
 TEST(SideViewFixture, MeasureFollowsTheTruthOverTheClip) {
-  const fs::path dir = LIPDRIVE_FIXTURE_DIR;
+  const fs::path dir = test::kFixtureDir;
   const std::vector<double> truth = numeric_column(read_csv_table(dir / "side_view_truth.csv"), "protrusion_truth");
   cv::VideoCapture capture((dir / "side_view.avi").string());
   ASSERT_TRUE(capture.isOpened());

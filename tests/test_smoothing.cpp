@@ -2,6 +2,7 @@
 // channels) evaluated on `lipdrive process` output: it must lower frame-to-frame jitter
 // in the final silence of the GRID clips, keep the lip closures on bilabial words, and not
 // under-articulate the generated talking face (docs/method.md 5 standard-deviation ratio).
+#include "build_paths.hpp"
 #include "core/metrics.hpp"
 #include "core/one_euro_filter.hpp"
 #include "firmware_app/tables/csv_table.hpp"
@@ -26,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 
 const fs::path kGridDir = test::shared_fixtures() / "grid";
-const fs::path kFixtureDir = LIPDRIVE_FIXTURE_DIR;
+const fs::path kFixtureDir = test::kFixtureDir;
 
 // The settings config/lipdrive.toml ships for open, width and protrusion. The channels
 // filter the calibrated signal (0 = rest, 1 = the performer's extreme), so beta is in
@@ -39,7 +40,7 @@ constexpr OneEuroSettings kShipped{.min_cutoff_hz = 1.0, .beta = 30.0, .d_cutoff
 // Runs `lipdrive process VIDEO --out CSV` and reads the table; empty on failure.
 CsvTable process(const fs::path& video, const fs::path& csv) {
   const std::string command =
-      std::string(LIPDRIVE_BINARY) + " process " + video.string() + " --out " + csv.string() + " 2>/dev/null";
+      std::string(test::kLipdrive) + " process " + video.string() + " --out " + csv.string() + " 2>/dev/null";
   const int status = std::system(command.c_str());
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << command;
   return read_csv_table(csv);

@@ -1,5 +1,6 @@
 // systemd/lipdrive.service: `systemd-analyze verify` accepts it, and its exposure score
 // (`systemd-analyze security --offline=yes`) is reported for the README.
+#include "build_paths.hpp"
 #include "command_run.hpp"
 #include "fixture_paths.hpp"
 
@@ -38,7 +39,7 @@ class SystemdUnitTest : public ::testing::Test {
 
   /// The unit with ExecStart's binary replaced by `binary` (verify checks that it exists).
   fs::path unit_running(const std::string& binary) const {
-    std::ifstream in(fs::path(LIPDRIVE_SOURCE_DIR) / "systemd" / "lipdrive.service");
+    std::ifstream in(fs::path(lipdrive::test::kSourceDir) / "systemd" / "lipdrive.service");
     std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
     const std::string installed = "ExecStart=/usr/bin/lipdrive ";
     const auto at = text.find(installed);
@@ -54,7 +55,7 @@ class SystemdUnitTest : public ::testing::Test {
 
 TEST_F(SystemdUnitTest, VerifyAcceptsTheUnit) {
   // --man=no: Documentation=man:lipdrive(1) is installed by the package (test_package), not here.
-  const CommandRun verify = run("systemd-analyze verify --man=no " + unit_running(LIPDRIVE_BINARY).string());
+  const CommandRun verify = run("systemd-analyze verify --man=no " + unit_running(lipdrive::test::kLipdrive).string());
   EXPECT_EQ(verify.exit_code, 0) << verify.output;
   EXPECT_THAT(verify.output, ::testing::Not(::testing::HasSubstr("lipdrive.service"))) << "no warnings";
 }
@@ -66,7 +67,8 @@ TEST_F(SystemdUnitTest, VerifyRejectsAMissingBinary) {
 }
 
 TEST_F(SystemdUnitTest, ExposureScore) {
-  const CommandRun security = run("systemd-analyze security --offline=yes " + unit_running(LIPDRIVE_BINARY).string());
+  const CommandRun security =
+      run("systemd-analyze security --offline=yes " + unit_running(lipdrive::test::kLipdrive).string());
   std::smatch match;
   ASSERT_TRUE(
       std::regex_search(security.output, match, std::regex(R"(Overall exposure level for \S+: ([0-9.]+) (\w+))")))
@@ -79,8 +81,9 @@ TEST_F(SystemdUnitTest, ExposureScore) {
 }
 
 TEST_F(SystemdUnitTest, EveryRemainingExposureIsExplainedInTheUnit) {
-  const CommandRun security = run("systemd-analyze security --offline=yes " + unit_running(LIPDRIVE_BINARY).string());
-  std::ifstream in(fs::path(LIPDRIVE_SOURCE_DIR) / "systemd" / "lipdrive.service");
+  const CommandRun security =
+      run("systemd-analyze security --offline=yes " + unit_running(lipdrive::test::kLipdrive).string());
+  std::ifstream in(fs::path(lipdrive::test::kSourceDir) / "systemd" / "lipdrive.service");
   std::string comments;
   for (std::string line; std::getline(in, line);)
     if (line.rfind('#', 0) == 0) comments += line + '\n';

@@ -1,3 +1,4 @@
+#include "build_paths.hpp"
 #include "fixture_paths.hpp"
 #include "sim/simulated_camera.hpp"
 #include "sim/talking_face.hpp"
@@ -166,7 +167,7 @@ TEST(TalkingFaceInput, RejectsAnEmptyPortraitOrDegenerateLandmarks) {
 }
 
 TEST(TalkingFaceFixture, VideoHasOneFramePerTruthRow) {
-  const fs::path dir = LIPDRIVE_FIXTURE_DIR;
+  const fs::path dir = test::kFixtureDir;
   LIPDRIVE_REQUIRE_BUILT(dir / "talking_face.avi");
   std::ifstream truth(dir / "talking_face_truth.csv");
   std::string line;

@@ -1,6 +1,7 @@
 // Viseme weights (core/viseme_weights): the NNLS solver, exact poses, allocation-free solve,
 // and recovery of every default-model pose through a noisy fit.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "core/viseme_weights.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "fixture_paths.hpp"
@@ -73,7 +74,7 @@ TEST(Nnls, SatisfiesTheKuhnTuckerConditionsWhenLeastSquaresGoesNegative) {
   }
 }
 
-std::filesystem::path default_model_path(const char* file) { return std::filesystem::path(LIPDRIVE_MODEL_DIR) / file; }
+std::filesystem::path default_model_path(const char* file) { return std::filesystem::path(test::kModelDir) / file; }
 
 VisemeSolver::Coefficients pose_alpha(const MorphableModel& model, int pose) {
   VisemeSolver::Coefficients alpha = VisemeSolver::Coefficients::Zero();
@@ -310,9 +311,7 @@ TEST(VisemeWeights, RecoversTheDefaultModelPosesThroughANoisyFit) {
   const MorphableModel model = load_model_file(path);
   const VisemeSolver solver(model, kDefaultLandmarkSet);
   const auto nnls = [&](const FitOutput& fit, const Landmarks2D&) { return solver.solve(fit.coefficients); };
-  const auto matched = [&](const FitOutput& fit, const Landmarks2D& detected) {
-    return solver.solve(fit, detected);
-  };
+  const auto matched = [&](const FitOutput& fit, const Landmarks2D& detected) { return solver.solve(fit, detected); };
   std::string figures;
   Recovery rig;
   for (const double span : {kFarEyeSpanPx, kRigEyeSpanPx}) {

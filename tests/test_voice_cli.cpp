@@ -1,6 +1,7 @@
 // The voice on the command line: `lipdrive voice train` and `voice eval` on GRID clips,
 // `lipdrive process --voice`, and bad input: a clip without sound, a missing or damaged
 // model, each named with the exit code of other bad input.
+#include "build_paths.hpp"
 #include "command_run.hpp"
 #include "core/voice_training.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -34,7 +35,8 @@ VoiceModel synthetic_model() {
     for (std::size_t i = 0; i < recording.samples.size(); ++i) {
       const double t = static_cast<double>(i) / rate;
       const double open = t > 0.5 && t < 1.5 ? std::sin(std::numbers::pi * (t - 0.5)) : 0.0;
-      recording.samples[i] = static_cast<float>(0.2 * open * std::sin(2 * std::numbers::pi * 150 * t) + 0.001 * noise(random));
+      recording.samples[i] =
+          static_cast<float>(0.2 * open * std::sin(2 * std::numbers::pi * 150 * t) + 0.001 * noise(random));
     }
     for (int f = 0; f < 50; ++f) {
       const double t = f / 25.0;
@@ -51,7 +53,7 @@ VoiceModel synthetic_model() {
   return train_voice_model(recordings, settings);
 }
 
-std::string lipdrive(const std::string& args) { return fmt::format("{} {}", LIPDRIVE_BINARY, args); }
+std::string lipdrive(const std::string& args) { return fmt::format("{} {}", test::kLipdrive, args); }
 
 TEST(VoiceCli, BadInputIsNamedWithTheExitCodesOfOtherBadInput) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
@@ -59,14 +61,17 @@ TEST(VoiceCli, BadInputIsNamedWithTheExitCodesOfOtherBadInput) {
   const fs::path model = dir.path() / "voice.lpv";
   save_voice_model_file(model, synthetic_model());
   // A clip without an audio track: a data error naming the clip.
-  test::CommandRun run = test::run_command(lipdrive(fmt::format("process {} --voice {}", test::kClip.string(), model.string())));
+  test::CommandRun run =
+      test::run_command(lipdrive(fmt::format("process {} --voice {}", test::kClip.string(), model.string())));
   EXPECT_EQ(run.exit_code, 65) << run.output;
   EXPECT_NE(run.output.find(test::kClip.string() + ": no audio track"), std::string::npos) << run.output;
-  run = test::run_command(lipdrive(fmt::format("voice train --out {} {}", (dir.path() / "x.lpv").string(), test::kClip.string())));
+  run = test::run_command(
+      lipdrive(fmt::format("voice train --out {} {}", (dir.path() / "x.lpv").string(), test::kClip.string())));
   EXPECT_EQ(run.exit_code, 65) << run.output;
   EXPECT_NE(run.output.find("no audio track"), std::string::npos) << run.output;
   // A missing model, and a damaged one.
-  run = test::run_command(lipdrive(fmt::format("process {} --voice {}", test::kClip.string(), (dir.path() / "absent.lpv").string())));
+  run = test::run_command(
+      lipdrive(fmt::format("process {} --voice {}", test::kClip.string(), (dir.path() / "absent.lpv").string())));
   EXPECT_EQ(run.exit_code, 66) << run.output;
   EXPECT_NE(run.output.find("absent.lpv: no such model file"), std::string::npos) << run.output;
   std::vector<char> bytes;
@@ -77,7 +82,8 @@ TEST(VoiceCli, BadInputIsNamedWithTheExitCodesOfOtherBadInput) {
   bytes[bytes.size() / 2] ^= 0x10;
   const fs::path damaged = dir.path() / "damaged.lpv";
   std::ofstream(damaged, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  run = test::run_command(lipdrive(fmt::format("voice eval --voice {} --test {}", damaged.string(), test::kClip.string())));
+  run = test::run_command(
+      lipdrive(fmt::format("voice eval --voice {} --test {}", damaged.string(), test::kClip.string())));
   EXPECT_EQ(run.exit_code, 65) << run.output;
   EXPECT_NE(run.output.find(damaged.string() + ": checksum mismatch"), std::string::npos) << run.output;
 }
@@ -94,8 +100,8 @@ TEST(VoiceCli, TrainEvalAndProcessOnGridClips) {
             std::string::npos)
       << run.output;
   const fs::path csv = dir.path() / "b.csv";
-  run = test::run_command(
-      lipdrive(fmt::format("process {} --voice {} --out {}", (grid / "bbaf2n.mpg").string(), model.string(), csv.string())));
+  run = test::run_command(lipdrive(
+      fmt::format("process {} --voice {} --out {}", (grid / "bbaf2n.mpg").string(), model.string(), csv.string())));
   ASSERT_EQ(run.exit_code, 0) << run.output;
   const CsvTable table = read_csv_table(csv);
   ASSERT_EQ(table.rows.size(), 75u);
@@ -107,7 +113,8 @@ TEST(VoiceCli, TrainEvalAndProcessOnGridClips) {
   const std::vector<double> open = numeric_column(table, "open_voice");
   EXPECT_EQ(open[5], open[10]);
   EXPECT_NE(*std::ranges::max_element(open), open[5]);
-  run = test::run_command(lipdrive(fmt::format("voice eval --voice {} --test {}", model.string(), (grid / "bbaf2n.mpg").string())));
+  run = test::run_command(
+      lipdrive(fmt::format("voice eval --voice {} --test {}", model.string(), (grid / "bbaf2n.mpg").string())));
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("bbaf2n.mpg"), std::string::npos) << run.output;
 }

@@ -3,6 +3,7 @@
 // block; and a voice that cannot be heard (a damaged model, one for another sample rate, a
 // clip without sound, an unknown sound card) leaves `lipdrive run` driving from the video.
 #include "allocation_counter.hpp"
+#include "build_paths.hpp"
 #include "command_run.hpp"
 #include "daemon_process.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -189,7 +190,7 @@ TEST_F(VoiceInputTest, AnUnknownSoundCardIsNamedAndTheVideoDrivesUntilItOpens) {
   EXPECT_NE(log.find("the drive follows the video alone until it opens"), std::string::npos) << log;
   EXPECT_NE(log.find("drive video"), std::string::npos) << "the status line\n" << log;
   // check-config opens it once and names it.
-  const test::CommandRun check = test::run_command(std::string(LIPDRIVE_BINARY) + " check-config " + config.string());
+  const test::CommandRun check = test::run_command(std::string(test::kLipdrive) + " check-config " + config.string());
   EXPECT_EQ(check.exit_code, 78) << check.output;
   EXPECT_NE(check.output.find("key voice.device: alsa:lipdrive_no_such_device"), std::string::npos) << check.output;
 }
