@@ -15,7 +15,6 @@ constexpr std::int64_t kNsPerDay = 86'400 * kNsPerSecond;
 constexpr std::int64_t kLtcAbsentNs = 500'000'000;
 // A rejected frame shows on the status line for this long.
 constexpr std::int64_t kLtcGarbledNs = 2 * kNsPerSecond;
-constexpr std::chrono::milliseconds kAudioWait{100};
 
 std::int64_t local_utc_offset_ns() {
   const std::time_t now = std::time(nullptr);
@@ -40,27 +39,13 @@ std::string ClockTimecode::describe() const {
 
 LtcTimecode::LtcTimecode(std::unique_ptr<AudioSource> input, TimecodeRate rate)
     : TimecodeSource(rate),
-      input_(std::move(input)),
-      input_name_(input_->describe()),
-      decoder_(input_->sample_rate(), frame_rate(rate).fps()),
-      thread_(&LtcTimecode::run, this) {}
+      decoder_(input->sample_rate(), frame_rate(rate).fps()),
+      listener_(std::move(input), "lipdrive-ltc", [this](const AudioBlock& block) { hear(block); }) {}
 
-LtcTimecode::~LtcTimecode() {
-  stop_ = true;
-  thread_.join();
-}
-
-void LtcTimecode::run() {
-  AudioBlock block;
-  while (!stop_.load(std::memory_order_relaxed)) {
-    const AudioStatus status = input_->read(block, kAudioWait);
-    input_lost_.store(status == AudioStatus::kDisconnected || status == AudioStatus::kEndOfStream,
-                      std::memory_order_relaxed);
-    if (status != AudioStatus::kBlock) continue;
-    decoder_.write({block.samples.data(), static_cast<std::size_t>(block.frames)}, block.sample_rate,
-                   block.capture_time_ns);
-    for (LtcFrame frame; decoder_.read(frame);) take(frame);
-  }
+void LtcTimecode::hear(const AudioBlock& block) {
+  decoder_.write({block.samples.data(), static_cast<std::size_t>(block.frames)}, block.sample_rate,
+                 block.capture_time_ns);
+  for (LtcFrame frame; decoder_.read(frame);) take(frame);
 }
 
 void LtcTimecode::take(const LtcFrame& frame) {
@@ -88,19 +73,19 @@ std::optional<std::int32_t> LtcTimecode::frame_at(std::int64_t capture_time_ns) 
 
 std::string LtcTimecode::problem() const {
   const std::int64_t now = monotonic_ns();
-  if (input_lost_.load(std::memory_order_relaxed)) return fmt::format("LTC input {} lost", input_name_);
+  if (listener_.input_lost()) return fmt::format("LTC input {} lost", listener_.input_name());
   // A signal that decodes into rejected frames is there but wrong: say so rather than absent.
   if (now - last_rejected_ns_.load(std::memory_order_relaxed) < kLtcGarbledNs)
-    return fmt::format("LTC garbled on {} ({} of {} frames rejected)", input_name_, frames_rejected(),
+    return fmt::format("LTC garbled on {} ({} of {} frames rejected)", listener_.input_name(), frames_rejected(),
                        frames_decoded());
   Anchor anchor;
   if (anchor_.read(anchor) == 0 || now - anchor.start_ns > kLtcAbsentNs)
-    return fmt::format("no LTC on {}: frames are not stamped", input_name_);
+    return fmt::format("no LTC on {}: frames are not stamped", listener_.input_name());
   return {};
 }
 
 std::string LtcTimecode::describe() const {
-  return fmt::format("LTC at {} fps from {}", rate_name(rate()), input_name_);
+  return fmt::format("LTC at {} fps from {}", rate_name(rate()), listener_.input_name());
 }
 
 }  // namespace lipdrive

@@ -2,14 +2,16 @@
 // system clock at a configured rate, or SMPTE LTC decoded from an audio input.
 //
 // Thread model: frame_at() is called on the processing thread for every frame and only reads
-// (lock-free, no allocation). The LTC source owns its audio input and decoder on a thread of
-// its own, which publishes the newest decoded frame and its start time through a seqlock;
-// the Daemon declares the source before the pipeline that reads it.
+// (lock-free, no allocation). The LTC source owns its decoder and an AudioListener
+// (firmware_app/daemon/audio_listener.hpp) whose thread feeds it and publishes the newest
+// decoded frame and its start time through a seqlock; the Daemon declares the source before
+// the pipeline that reads it.
 #pragma once
 
 #include "core/timecode.hpp"
 #include "drivers/audio_source.hpp"
 #include "drivers/ltc_decoder.hpp"
+#include "firmware_app/daemon/audio_listener.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
 
 #include <atomic>
@@ -17,7 +19,6 @@
 #include <memory>
 #include <optional>
 #include <string>
-#include <thread>
 
 namespace lipdrive {
 
@@ -63,7 +64,6 @@ class LtcTimecode : public TimecodeSource {
   /// Takes the audio input; starts reading it. Throws std::runtime_error when libltc cannot
   /// make its decoder.
   LtcTimecode(std::unique_ptr<AudioSource> input, TimecodeRate rate);
-  ~LtcTimecode() override;
 
   std::optional<std::int32_t> frame_at(std::int64_t capture_time_ns) const override;
   std::string problem() const override;
@@ -80,19 +80,15 @@ class LtcTimecode : public TimecodeSource {
     std::int64_t start_ns = 0;  // CLOCK_MONOTONIC of its first sample
   };
 
-  void run();
+  void hear(const AudioBlock& block);
   void take(const LtcFrame& frame);
 
-  std::unique_ptr<AudioSource> input_;  // the thread's
-  std::string input_name_;
-  LtcDecoder decoder_;                // the thread's
-  std::optional<std::int32_t> last_;  // the thread's: the previous decoded label
+  LtcDecoder decoder_;                // the listener's thread's
+  std::optional<std::int32_t> last_;  // the listener's thread's: the previous decoded label
   Published<Anchor> anchor_;
   std::atomic<std::uint64_t> decoded_{0}, rejected_{0};
   std::atomic<std::int64_t> last_rejected_ns_{0};
-  std::atomic<bool> input_lost_{false};
-  std::atomic<bool> stop_{false};
-  std::thread thread_;  // last: it uses the members above
+  AudioListener listener_;  // last: its thread uses the members above
 };
 
 }  // namespace lipdrive

@@ -1,27 +1,26 @@
 // The voice room ([voice], docs/voice.md): the performer's microphone heard through the
 // performer's voice model, so that the drive can hand over to the voice while the face is lost.
 //
-// Thread model: the VoiceRoom owns its AudioSource, the feature extractor and the predictor,
-// and one thread of its own that uses them: it reads block after block, turns each into feature
-// frames and predictions (no heap allocation per block) and publishes the newest prediction
-// through a seqlock (latest wins). Any thread reads it with latest() (lock-free, no
-// allocation). The thread starts at construction and is joined by the destructor before any
-// member it uses goes; the Daemon declares the room before the pipeline that reads it, so the
-// pipeline's threads are joined first.
+// Thread model: the VoiceRoom owns the feature extractor, the predictor and an AudioListener
+// (firmware_app/daemon/audio_listener.hpp) whose thread reads the input block after block and
+// hands each to hear(): feature frames and predictions (no heap allocation per block), the
+// newest prediction published through a seqlock (latest wins). Any thread reads it with
+// latest() (lock-free, no allocation). The listener is the last member, so its thread is
+// joined before anything it uses goes; the Daemon declares the room before the pipeline that
+// reads it, so the pipeline's threads are joined first.
 #pragma once
 
 #include "core/audio_features.hpp"
 #include "core/voice_model.hpp"
 #include "drivers/audio_source.hpp"
+#include "firmware_app/daemon/audio_listener.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
 
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <memory>
 #include <string>
-#include <thread>
 #include <vector>
 
 namespace lipdrive {
@@ -39,7 +38,6 @@ class VoiceRoom {
   /// Takes the input; starts hearing it. Throws std::invalid_argument when the model cannot be
   /// run (core/voice_model.hpp), std::runtime_error when aubio cannot make its objects.
   VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model);
-  ~VoiceRoom();
   VoiceRoom(const VoiceRoom&) = delete;
   VoiceRoom& operator=(const VoiceRoom&) = delete;
 
@@ -51,22 +49,16 @@ class VoiceRoom {
   std::string problem() const;
   std::string describe() const;
   /// Blocks heard so far.
-  std::uint64_t blocks() const { return blocks_.load(std::memory_order_relaxed); }
+  std::uint64_t blocks() const { return listener_.blocks(); }
 
  private:
-  void run();
   void hear(const AudioBlock& block);
 
-  std::unique_ptr<AudioSource> input_;  // the thread's
-  std::string input_name_;
-  AudioFeatures features_;            // the thread's
-  VoicePredictor predictor_;          // the thread's
-  std::vector<FeatureFrame> frames_;  // the thread's: the feature frames of one block
+  AudioFeatures features_;            // the listener's thread's
+  VoicePredictor predictor_;          // the listener's thread's
+  std::vector<FeatureFrame> frames_;  // the listener's thread's: the feature frames of one block
   Published<VoiceState> state_;
-  std::atomic<std::uint64_t> blocks_{0};
-  std::atomic<bool> input_lost_{false};
-  std::atomic<bool> stop_{false};
-  std::thread thread_;  // last: it uses the members above
+  AudioListener listener_;  // last: its thread uses the members above
 };
 
 }  // namespace lipdrive
