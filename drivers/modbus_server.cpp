@@ -104,12 +104,12 @@ ModbusServer::ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int 
       throw std::runtime_error(fmt::format("modbus server {}: cannot listen: {}", describe(), modbus_strerror(errno)));
     port_ = ntohs(bound.sin_port);
     thread_ = std::thread(&ModbusServer::serve_tcp, this);
-    schedule_thread(thread_, "lipdrive-modbus", 0);
+    name_thread(thread_, "lipdrive-mbserve");
   } else {
     if (!connect_context(context_.get(), endpoint_))
       throw std::runtime_error(fmt::format("modbus server {}: cannot open: {}", describe(), modbus_strerror(errno)));
     thread_ = std::thread(&ModbusServer::serve_rtu, this);
-    schedule_thread(thread_, "lipdrive-modbus", 0);
+    name_thread(thread_, "lipdrive-mbserve");
   }
   spdlog::info("modbus server {}: serving {} input and {} holding registers", describe(), input_registers,
                holding_registers);

@@ -8,10 +8,14 @@
 
 namespace lipdrive {
 
-std::string schedule_thread(std::thread& thread, const char* name, int realtime_priority) {
+void name_thread(std::thread& thread, const char* name) {
   char truncated[16] = {};
   std::strncpy(truncated, name, sizeof truncated - 1);
   pthread_setname_np(thread.native_handle(), truncated);
+}
+
+std::string schedule_thread(std::thread& thread, const char* name, int realtime_priority) {
+  name_thread(thread, name);
   if (realtime_priority <= 0) return "";
   sched_param param{};
   param.sched_priority = realtime_priority;

@@ -13,11 +13,13 @@
 
 namespace lipdrive {
 
-/// Names `thread` for top -H, ps -L and gdb (the kernel keeps the first 15 characters) and,
-/// when `realtime_priority` is 1..99, puts it under SCHED_FIFO at that priority (0: the normal
-/// scheduler). Returns "" when done, otherwise why the priority was refused (the thread runs on
-/// under the normal scheduler): a process needs CAP_SYS_NICE, or RLIMIT_RTPRIO of at least the
-/// priority (systemd's LimitRTPRIO= with RestrictRealtime=no).
+/// Names `thread` for top -H, ps -L and gdb (the kernel keeps the first 15 characters).
+void name_thread(std::thread& thread, const char* name);
+
+/// Names `thread` and, when `realtime_priority` is 1..99, puts it under SCHED_FIFO at that
+/// priority (0: the normal scheduler). Returns "" when done, otherwise why the priority was
+/// refused (the thread runs on under the normal scheduler): a process needs CAP_SYS_NICE, or
+/// RLIMIT_RTPRIO of at least the priority (systemd's LimitRTPRIO= with RestrictRealtime=no).
 std::string schedule_thread(std::thread& thread, const char* name, int realtime_priority);
 
 }  // namespace lipdrive

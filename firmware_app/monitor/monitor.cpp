@@ -167,12 +167,12 @@ bool Monitor::start() {
     listener_id_ = std::this_thread::get_id();
     server_->listen_after_bind();
   });
-  schedule_thread(listener_, "lipdrive-http", 0);
+  name_thread(listener_, "lipdrive-http");
   // Listening, before anything may call stop(): httplib's stop() only closes a running server.
   for (int waited_ms = 0; !server_->is_running() && waited_ms < 5000; ++waited_ms)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   encoder_ = std::thread(&Monitor::encoder_loop, this);
-  schedule_thread(encoder_, "lipdrive-preview", 0);
+  name_thread(encoder_, "lipdrive-preview");
   spdlog::info("monitor: {} ({} connections served at once, previews {} a second)", url(), settings_.max_clients,
                settings_.preview_fps);
   return true;

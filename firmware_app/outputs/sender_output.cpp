@@ -26,7 +26,7 @@ SenderOutput::SenderOutput(std::string description, int rate_hz, std::chrono::mi
 void SenderOutput::start() {
   thread_ = std::thread(&SenderOutput::run, this);
   // "lipdrive-dmx", "lipdrive-osc", ...: the description's first word.
-  schedule_thread(thread_, ("lipdrive-" + description_.substr(0, description_.find(' '))).c_str(), 0);
+  name_thread(thread_, ("lipdrive-" + description_.substr(0, description_.find(' '))).c_str());
 }
 
 void SenderOutput::stop() {
