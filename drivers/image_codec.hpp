@@ -32,9 +32,24 @@ class JpegDecoder {
   std::unique_ptr<Codec> codec_;
 };
 
-/// A JPEG file's bytes of an 8-bit gray or BGR image; `quality` 1..100 as libjpeg's scale
-/// (FFmpeg's quantiser scale chosen to match it). Throws MediaError when FFmpeg cannot encode.
-std::string encode_jpeg(const cv::Mat& image, int quality);
+/// Encodes 8-bit gray or BGR images to JPEG one after another (the monitor's previews): the
+/// scaler, the picture and FFmpeg's encoder are made for the first image and kept while its
+/// size and kind hold.
+class JpegEncoder {
+ public:
+  /// `quality` 1..100 as libjpeg's scale (FFmpeg's quantiser scale chosen to match it).
+  explicit JpegEncoder(int quality);
+  ~JpegEncoder();
+  JpegEncoder(const JpegEncoder&) = delete;
+  JpegEncoder& operator=(const JpegEncoder&) = delete;
+
+  /// A JPEG file's bytes of `image`. Throws MediaError when FFmpeg cannot encode it.
+  std::string encode(const cv::Mat& image);
+
+ private:
+  struct Codec;
+  std::unique_ptr<Codec> codec_;
+};
 
 /// Writes an 8-bit gray or BGR image to a PNG file. Throws MediaError naming the file.
 void write_png(const std::filesystem::path& file, const cv::Mat& image);

@@ -124,13 +124,31 @@ TEST_F(MediaFilesTest, JpegDecoderGivesTheLumaAndNeverAStaleFrame) {
 
 TEST_F(MediaFilesTest, JpegPreviewsDecodeToTheImageAndShrinkWithQuality) {
   const cv::Mat card = test_card();
-  const std::string fine = encode_jpeg(card, 90), coarse = encode_jpeg(card, 20);
+  JpegEncoder fine_encoder(90), coarse_encoder(20);
+  const std::string fine = fine_encoder.encode(card), coarse = coarse_encoder.encode(card);
   const cv::Mat decoded = cv::imdecode(std::vector<uchar>(fine.begin(), fine.end()), cv::IMREAD_COLOR);
   ASSERT_EQ(decoded.size(), card.size());
   EXPECT_LT(mean_abs_difference(gray_of(decoded), gray_of(card)), 3.0);
   EXPECT_LT(coarse.size(), fine.size());
-  const std::string gray = encode_jpeg(gray_of(card), 80);
+  JpegEncoder gray_encoder(80);
+  const std::string gray = gray_encoder.encode(gray_of(card));
   EXPECT_EQ(cv::imdecode(std::vector<uchar>(gray.begin(), gray.end()), cv::IMREAD_GRAYSCALE).size(), card.size());
+}
+
+// The monitor's encoder is kept from one preview to the next: every image comes out as itself,
+// through changes of content, size and kind.
+TEST_F(MediaFilesTest, OneJpegEncoderFollowsItsImages) {
+  const cv::Mat card = test_card();
+  cv::Mat inverted, small;
+  cv::bitwise_not(card, inverted);
+  cv::resize(card, small, {card.cols / 2, card.rows / 2});
+  JpegEncoder encoder(90);
+  for (const cv::Mat& image : {card, inverted, small, gray_of(inverted), card}) {
+    const std::string bytes = encoder.encode(image);
+    const cv::Mat decoded = cv::imdecode(std::vector<uchar>(bytes.begin(), bytes.end()), cv::IMREAD_GRAYSCALE);
+    ASSERT_EQ(decoded.size(), image.size());
+    EXPECT_LT(mean_abs_difference(decoded, image.channels() == 1 ? image : gray_of(image)), 3.0);
+  }
 }
 
 TEST_F(MediaFilesTest, PngFilesHoldTheImageExactly) {

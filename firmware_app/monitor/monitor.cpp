@@ -283,12 +283,13 @@ void Monitor::Jpeg::publish(std::string jpeg, std::uint64_t frame_sequence) {
 
 void Monitor::encoder_loop() {
   cv::Mat canvas;
+  JpegEncoder front(kJpegQuality), side(kJpegQuality);  // each keeps its FFmpeg encoder for its image size
   std::int64_t next_sample_ns = monotonic_ns();
   while (!stop_.load(std::memory_order_relaxed)) {
     const std::int64_t wait_ns = std::max<std::int64_t>(next_sample_ns - monotonic_ns(), 0);
     if (const PreviewFrame* frame = sources_.preview.take(std::chrono::nanoseconds(wait_ns))) {
-      front_jpeg_.publish(preview_jpeg(*frame, canvas, kJpegQuality), frame->sequence);
-      if (frame->side) side_jpeg_.publish(side_preview_jpeg(*frame, canvas, kJpegQuality), frame->sequence);
+      front_jpeg_.publish(preview_jpeg(*frame, canvas, front), frame->sequence);
+      if (frame->side) side_jpeg_.publish(side_preview_jpeg(*frame, canvas, front), frame->sequence);
       counters_.encoded.fetch_add(1, std::memory_order_relaxed);
     }
     const std::int64_t now = monotonic_ns();
@@ -366,8 +367,8 @@ std::string Monitor::state_json() {
   nlohmann::json state = {
       {"time_s", seconds(now - start_ns_)},
       {"camera", pipeline.describe_source()},
-      {"side_camera", side ? nlohmann::json{{"camera", side->describe()}, {"connected", side->connected()}}
-                           : nlohmann::json(nullptr)},
+      {"side_camera",
+       side ? nlohmann::json{{"camera", side->describe()}, {"connected", side->connected()}} : nlohmann::json(nullptr)},
       {"fps", drive.fps},
       {"source", std::string(drive_source_name(status_source(drive.status)))},
       {"frames",

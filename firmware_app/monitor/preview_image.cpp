@@ -1,7 +1,5 @@
 #include "firmware_app/monitor/preview_image.hpp"
 
-#include "drivers/image_codec.hpp"
-
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
@@ -41,7 +39,7 @@ void draw_contour(cv::Mat& canvas, const Landmarks2D& points, int first, int las
 
 }  // namespace
 
-std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality) {
+std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, JpegEncoder& encoder) {
   cv::cvtColor(frame.image, canvas, cv::COLOR_GRAY2BGR);
   const int k = frame.decimation;
   if (frame.tracked) {
@@ -56,10 +54,10 @@ std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality
   } else {
     warn(canvas, "no face", 1);
   }
-  return encode_jpeg(canvas, quality);
+  return encoder.encode(canvas);
 }
 
-std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int quality) {
+std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, JpegEncoder& encoder) {
   cv::cvtColor(frame.side_image, canvas, cv::COLOR_GRAY2BGR);
   const int k = frame.side_decimation;
   const SideProfile& p = frame.side_profile;
@@ -73,8 +71,8 @@ std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int qu
   }
   if (p.ok()) {
     dot(canvas, p.subnasale, k, kLandmarkColour);
-    cv::line(canvas, to_canvas(p.nose_tip.x, p.upper_lip.y, k), to_canvas(p.upper_lip, k), kLipColour, 1,
-             cv::LINE_AA, kShift);
+    cv::line(canvas, to_canvas(p.nose_tip.x, p.upper_lip.y, k), to_canvas(p.upper_lip, k), kLipColour, 1, cv::LINE_AA,
+             kShift);
     dot(canvas, p.upper_lip, k, kLipColour);
   }
   int line = 1;
@@ -86,7 +84,7 @@ std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, int qu
     case SideStatus::kNoNose: warn(canvas, "no nose", line); break;
     case SideStatus::kNoLip: warn(canvas, "no upper lip", line); break;
   }
-  return encode_jpeg(canvas, quality);
+  return encoder.encode(canvas);
 }
 
 }  // namespace lipdrive
