@@ -173,7 +173,8 @@ VisemeWeights VisemeSolver::solve(const FitOutput& fit, const Landmarks2D& obser
     // The affine camera that best maps this pose's landmarks onto the observed ones (linear
     // least squares, as in the fit's step 1): M = C S⁻¹.
     Eigen::Matrix<double, 6, 1> flat = cross_basis.col(0);
-    flat.noalias() += cross_basis.rightCols<kMaxFitComponents>() * pose.shape;
+    // Only the model's components: the padding up to kMaxFitComponents is zero.
+    flat.noalias() += cross_basis.middleCols(1, num_components_) * pose.shape.head(num_components_);
     const Eigen::Map<const Eigen::Matrix<double, 2, 3>> cross(flat.data());
     const Eigen::Matrix<double, 2, 3> m = cross * pose.scatter_inverse;
     // Nearest weak-perspective camera (scaled rotation rows). With M = U S Vᵀ that is

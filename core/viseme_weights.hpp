@@ -14,7 +14,6 @@
 
 #include <array>
 #include <optional>
-#include <span>
 #include <vector>
 
 namespace lipdrive {

@@ -90,7 +90,9 @@ std::vector<std::pair<std::string, double>> mouth_weight_errors(LandmarkSet set)
     for (int e = 0; e < model.num_expressions(); ++e) {
       EXPECT_GE(fit.expressions[e], 0.0);
       EXPECT_LE(fit.expressions[e], 1.0);
-      if (is_unobservable_expression(model.expression_names[e])) EXPECT_EQ(fit.expressions[e], 0.0);
+      if (is_unobservable_expression(model.expression_names[e])) {
+        EXPECT_EQ(fit.expressions[e], 0.0);
+      }
       squared_error[e] += std::pow(fit.expressions[e] - truth[e], 2);
     }
   }
