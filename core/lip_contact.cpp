@@ -105,31 +105,14 @@ Region inner_region(const Profile& profile, double margin_samples) {
           static_cast<int>(std::floor(std::min(profile.outer_bottom, profile.inner_bottom + margin_samples)))};
 }
 
-/// The run of non-lip samples through the darkest sample of the region, in samples (0 when
-/// that sample looks like lip): the cavity, and the teeth next to it. Lip-like samples over at
-/// most `bridge` samples do not end the run. Bright specks on the lips themselves (gloss) are
-/// not on it.
-double gap_through_darkest(const Profile& profile, const Region& region, double lip_luma, const LipContactSettings& s) {
-  constexpr int n = LipContactSettings::kSamples;
-  const float dark = static_cast<float>(s.dark_ratio * lip_luma),
-              bright = static_cast<float>(s.bright_ratio * lip_luma);
-  const auto non_lip = [&](int i) { return profile.luma[i] < dark || profile.luma[i] > bright; };
-  int darkest = region.first;
-  for (int i = region.first; i <= region.last; ++i)
-    if (profile.luma[i] < profile.luma[darkest]) darkest = i;
-  if (!non_lip(darkest)) return 0;
-  const int bridge = static_cast<int>(std::floor(s.bridge_px / profile.px_per_sample));
-  const auto extend = [&](int step) {
-    int end = darkest;
-    for (int i = darkest + step, lip_run = 0; i >= 0 && i < n && lip_run <= bridge; i += step) {
-      if (non_lip(i))
-        end = i, lip_run = 0;
-      else
-        ++lip_run;
-    }
-    return end;
-  };
-  return extend(1) - extend(-1) + 1;
+/// The darkness of the region against the lips, integrated along the profile: the sum of
+/// (1 - luma / lip luma) over its samples darker than the lips, in pixels. Blur spreads the
+/// line between sealed lips but keeps its integral; a cavity adds its contrast times its
+/// height, with no threshold on how dark it must be.
+double darkness_px(const Profile& profile, const Region& region, double lip_luma) {
+  double sum = 0;
+  for (int i = region.first; i <= region.last; ++i) sum += std::max(0.0, 1.0 - profile.luma[i] / lip_luma);
+  return sum * profile.px_per_sample;
 }
 
 /// How far the region's luma departs from a single valley, over the lips' luma: its total
@@ -179,17 +162,16 @@ LipGap measure_lip_gap(const cv::Mat& gray, const Landmarks2D& p, const LipConta
   result.lip_luma = median(std::span(band).first(static_cast<std::size_t>(band_count)));
   if (result.lip_luma < 8) return result;  // a black frame: nothing to compare against
 
-  std::array<double, kColumns> gaps{}, textures{};
+  std::array<double, kColumns> darkness{}, textures{};
   for (int c = 0; c < kColumns; ++c) {
     const Profile& profile = profiles[c];
     const Region region = inner_region(profile, s.margin * d / profile.px_per_sample);
     if (region.last < region.first) return result;
-    const double run_px = gap_through_darkest(profile, region, result.lip_luma, s) * profile.px_per_sample;
-    gaps[c] = std::max(0.0, run_px - s.line_px) / d;
+    darkness[c] = std::max(0.0, darkness_px(profile, region, result.lip_luma) - s.line_darkness_px) / d;
     textures[c] = excess_variation(profile, region, result.lip_luma);
   }
   // Medians over the profiles: one profile on a lip crease or a stray highlight does not decide.
-  result.gap = median(gaps);
+  result.darkness = median(darkness);
   result.texture = median(textures);
   result.valid = true;
   return result;
@@ -197,7 +179,7 @@ LipGap measure_lip_gap(const cv::Mat& gray, const Landmarks2D& p, const LipConta
 
 double seal_probability(const LipGap& gap, double landmark_height, const LipContactSettings& s) {
   if (!gap.valid) return 0;
-  const double evidence = std::max(gap.gap / s.open_gap, gap.texture / s.open_texture);
+  const double evidence = std::max(gap.darkness / s.open_darkness, gap.texture / s.open_texture);
   const double pixels = 1.0 / (1.0 + std::exp((evidence - 1) / s.seal_softness));
   const double plausible = 1.0 / (1.0 + std::exp((landmark_height - s.max_sealed_height) / s.height_softness));
   return pixels * plausible;

@@ -12,9 +12,10 @@
 // the lips' own (the median of the lip bands between the outer and inner contours), so gain,
 // skin tone and lighting cancel; positions are in units of d (DESIGN.md 4.4), so the measure
 // does not depend on the image resolution. Two pieces of evidence that the lips are apart:
-//  - gap: the run of "not lip" samples (darker than 0.72 or brighter than 1.3 x the lips)
-//    through the darkest sample where the lips meet, less the width of the line between
-//    sealed lips, over d;
+//  - darkness: where the lips meet, the integral along the profile of how much darker than the
+//    lips each sample is (1 - luma / lip luma), less that of the line between sealed lips,
+//    over d. Blur spreads the line and the cavity's edges but keeps the integral, and no
+//    threshold decides what counts as dark;
 //  - texture: how far the profile there departs from a single valley (down to the line, up
 //    again): teeth between the lips add a bright band and a second dark line, even where they
 //    are hardly brighter than the lips (grey, evenly lit faces).
@@ -43,18 +44,13 @@ struct LipContactSettings {
   /// contours the lips are taken to meet (the landmarks' error), both over d.
   double extend = 0.15;
   double margin = 0.05;
-  /// A sample is cavity when darker than `dark_ratio` x the lips' luma, teeth or gloss when
-  /// brighter than `bright_ratio` x it.
-  double dark_ratio = 0.72;
-  double bright_ratio = 1.3;
-  /// Lip-like samples over at most this many pixels do not end a run of non-lip samples: a
-  /// blurred edge between teeth and cavity crosses the lips' brightness.
-  double bridge_px = 1.0;
-  /// Width of the line between sealed lips (pixels: it is the optics' blur), taken off the run.
-  double line_px = 2.0;
-  /// The pixels say "apart" at gap >= open_gap (over d) or texture >= open_texture (over the
-  /// lips' luma); seal_softness is the width of the transition, in units of those thresholds.
-  double open_gap = 0.07;
+  /// The darkness of the line between sealed lips (pixels x relative darkness: its width is
+  /// the optics' blur), taken off the darkness integral.
+  double line_darkness_px = 1.2;
+  /// The pixels say "apart" at darkness >= open_darkness (over d) or texture >= open_texture
+  /// (over the lips' luma); seal_softness is the width of the transition, in units of those
+  /// thresholds.
+  double open_darkness = 0.025;
   double open_texture = 0.05;
   double seal_softness = 0.25;
   /// Landmark inner-lip heights (H/d) above this are wider than any lagging closure: no seal.
@@ -65,7 +61,7 @@ struct LipContactSettings {
 /// The pixel evidence of one frame.
 struct LipGap {
   bool valid = false;   // the mouth is inside the image and its lips are not black
-  double gap = 0;       // median over the profiles of the non-lip run where the lips meet, over d
+  double darkness = 0;  // median over the profiles of the darkness integral where the lips meet, over d
   double texture = 0;   // median excess variation there (teeth), over the lips' luma
   double lip_luma = 0;  // median luma of the lip bands
 };
