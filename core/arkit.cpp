@@ -49,16 +49,21 @@ ArkitMap::ArkitMap(std::span<const std::string> expression_names) : from_fit_(!e
   }
 }
 
+void ArkitMap::from_expressions(std::span<const double> expressions, std::span<float, kNumArkit> out) const {
+  for (int a = 0; a < kNumArkit; ++a) {
+    const auto [first, second] = sources(a);
+    const double weight = first < 0    ? 0.0
+                          : second < 0 ? expressions[static_cast<std::size_t>(first)]
+                                       : (expressions[static_cast<std::size_t>(first)] +
+                                          expressions[static_cast<std::size_t>(second)]) / 2;
+    out[static_cast<std::size_t>(a)] = unit(weight);
+  }
+}
+
 void set_arkit_signals(const ArkitMap& map, std::span<const double> expressions, DriveSignals& signals) {
   if (map.from_fit()) {
-    for (int a = 0; a < kNumArkit; ++a) {
-      const auto [first, second] = map.sources(a);
-      const double weight = first < 0    ? 0.0
-                            : second < 0 ? expressions[static_cast<std::size_t>(first)]
-                                         : (expressions[static_cast<std::size_t>(first)] +
-                                            expressions[static_cast<std::size_t>(second)]) / 2;
-      signals[arkit_signal(a)] = unit(weight);
-    }
+    map.from_expressions(expressions,
+                         std::span<float, kNumArkit>(signals.values.data() + kFirstArkitSignal, kNumArkit));
     return;
   }
   static constexpr int kJawOpen = *arkit_index("jawOpen"), kMouthClose = *arkit_index("mouthClose"),

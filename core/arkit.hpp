@@ -43,6 +43,9 @@ inline constexpr std::array<std::string_view, 52> kArkitNames{
     "noseSneerRight",   "tongueOut"};
 inline constexpr int kNumArkit = static_cast<int>(kArkitNames.size());
 
+/// One frame's 52 weights in the order of kArkitNames.
+using ArkitWeights = std::array<float, kNumArkit>;
+
 /// The index of an Apple name in kArkitNames; nullopt for another name.
 constexpr std::optional<int> arkit_index(std::string_view name) {
   for (int a = 0; a < kNumArkit; ++a)
@@ -69,6 +72,10 @@ class ArkitMap {
   /// The expression shapes behind Apple name `a`: none (-1, -1), one (e, -1) or two halves
   /// (l, r) merged by their mean. None for the shapes held at 0.
   std::array<int, 2> sources(int a) const { return sources_[static_cast<std::size_t>(a)]; }
+
+  /// The 52 weights of a fit, each in [0, 1]: `expressions` are the fit's weights in the model's
+  /// order (FitOutput::expressions). Only for a map from_fit(). Allocates nothing.
+  void from_expressions(std::span<const double> expressions, std::span<float, kNumArkit> out) const;
 
  private:
   std::array<std::array<int, 2>, kNumArkit> sources_;
