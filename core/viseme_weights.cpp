@@ -71,7 +71,68 @@ std::optional<std::pair<int, double>> parse_pose_name(const std::string& name) {
   return std::nullopt;
 }
 
+/// Where each input of kArkitVisemeInputs comes from: the ARKit weights at first and second
+/// (second -1: one weight), combined as (w[first] + sign · w[second]) · scale. Resolved at compile
+/// time: an input that names no ARKit shape throws, which fails the build.
+struct InputSource {
+  int first = -1, second = -1;
+  float sign = 0, scale = 0;
+};
+
+constexpr std::array<InputSource, kNumArkitVisemeInputs> input_sources() {
+  std::array<InputSource, kNumArkitVisemeInputs> out{};
+  for (int i = 0; i < kNumArkitVisemeInputs; ++i) {
+    const ArkitVisemeInput& input = kArkitVisemeInputs[static_cast<std::size_t>(i)];
+    InputSource& s = out[static_cast<std::size_t>(i)];
+    if (input.shape == "aperture") {
+      s = {*arkit_index("jawOpen"), *arkit_index("mouthClose"), -1, 1 / input.full};
+    } else if (const auto a = arkit_index(input.shape)) {
+      s = {*a, -1, 0, 1 / input.full};
+    } else {
+      for (int a = 0; a < kNumArkit; ++a) {
+        const std::string_view name = kArkitNames[static_cast<std::size_t>(a)];
+        if (!name.starts_with(input.shape)) continue;
+        if (name.substr(input.shape.size()) == "Left") s.first = a;
+        if (name.substr(input.shape.size()) == "Right") s.second = a;
+      }
+      if (s.first < 0 || s.second < 0)
+        throw std::invalid_argument("kArkitVisemeInputs: no ARKit shape or Left/Right pair of that name");
+      s.sign = 1;
+      s.scale = 0.5f / input.full;
+    }
+  }
+  return out;
+}
+
+constexpr std::array<InputSource, kNumArkitVisemeInputs> kInputSources = input_sources();
+
+constexpr int viseme_named(std::string_view name) {
+  return static_cast<int>(std::find(kVisemeNames.begin(), kVisemeNames.end(), name) - kVisemeNames.begin());
+}
+
 }  // namespace
+
+VisemeWeights visemes_from_arkit(std::span<const float, kNumArkit> arkit, double seal) {
+  std::array<float, kNumArkitVisemeInputs + 1> input;
+  for (int i = 0; i < kNumArkitVisemeInputs; ++i) {
+    const InputSource& s = kInputSources[static_cast<std::size_t>(i)];
+    const float second = s.second < 0 ? 0.0f : s.sign * arkit[static_cast<std::size_t>(s.second)];
+    input[static_cast<std::size_t>(i)] = (arkit[static_cast<std::size_t>(s.first)] + second) * s.scale;
+  }
+  input.back() = 1;  // the constant
+  VisemeWeights out;
+  for (int v = 0; v < kNumVisemes; ++v) {
+    const auto& row = kArkitVisemeTable[static_cast<std::size_t>(v)];
+    float sum = 0;
+    for (std::size_t i = 0; i < input.size(); ++i) sum += row[i] * input[i];
+    out[static_cast<std::size_t>(v)] = std::clamp(sum, 0.0f, 1.0f);
+  }
+  constexpr int kW = viseme_named("W"), kOoh = viseme_named("Ooh-Q"), kFv = viseme_named("F-V");
+  static_assert(kW < kNumVisemes && kOoh < kNumVisemes && kFv < kNumVisemes);
+  const float closed_by_viseme = std::max({out[kW], out[kOoh], out[kFv]});
+  transfer_to_bilabial(out, std::clamp(seal, 0.0, 1.0) * (1 - closed_by_viseme));
+  return out;
+}
 
 Vector nnls_normal_equations(const Gram& gram, const Vector& h) {
   // Tolerance for "the gradient still points into the feasible set": near the rounding

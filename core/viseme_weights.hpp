@@ -1,3 +1,7 @@
+// Viseme weights, by the kind of model (docs/method.md 8): a model with expression shapes (the
+// ICT head) takes them from its ARKit weights through one table (visemes_from_arkit, the table
+// in docs/arkit.md); a model built from viseme poses matches its poses (VisemeSolver below).
+//
 // Viseme weights from fitted shape coefficients (docs/method.md 8):
 // alpha - alpha_neutral ≈ Σ_v w_v c_v with w >= 0, where c_v = alpha(full pose of viseme v) -
 // alpha(neutral). Solved by non-negative least squares (Lawson & Hanson 1974, "Solving Least
@@ -14,6 +18,8 @@
 
 #include <array>
 #include <optional>
+#include <span>
+#include <string_view>
 #include <vector>
 
 namespace lipdrive {
@@ -87,6 +93,65 @@ class VisemeSolver {
 /// The solver of a model that has the poses VisemeSolver needs, else nullopt (a user model
 /// built from other poses: it has no viseme weights).
 std::optional<VisemeSolver> make_viseme_solver(const MorphableModel& model, LandmarkSet set);
+
+/// The inputs of the ARKit viseme table, each an articulation read from the 52 ARKit weights
+/// and divided by `full`, its level at full articulation: "aperture" is jawOpen − mouthClose
+/// (ARKit's mouthClose closes the lips against the open jaw, so this is the lips' opening), a
+/// Left/Right stem ("mouthStretch") is the mean of its two sides, the others are Apple names.
+/// `full` is the input's 99th percentile over the ICT head's fit of GRID speech (the tuning
+/// clips, docs/arkit.md "Visemes"); 0.5 for the three the fit never moves on GRID.
+struct ArkitVisemeInput {
+  std::string_view shape;
+  float full;
+};
+inline constexpr std::array<ArkitVisemeInput, 11> kArkitVisemeInputs{{
+    {"aperture", 0.34f},
+    {"mouthPucker", 0.47f},
+    {"mouthFunnel", 0.5f},
+    {"mouthStretch", 0.19f},
+    {"mouthSmile", 0.5f},
+    {"mouthLowerDown", 0.18f},
+    {"mouthUpperUp", 0.59f},
+    {"mouthRollLower", 0.31f},
+    {"mouthShrugLower", 0.47f},
+    {"mouthShrugUpper", 0.5f},
+    {"mouthPress", 0.43f},
+}};
+inline constexpr int kNumArkitVisemeInputs = static_cast<int>(kArkitVisemeInputs.size());
+
+/// The table of docs/arkit.md "Visemes": row v (kVisemeNames order) holds viseme v's share of
+/// each input at full articulation (the columns of kArkitVisemeInputs), then a constant.
+/// Viseme v's weight before the lips' seal is clamp(Σ share · input / full + constant, 0, 1).
+/// Each row is the viseme's articulation (sim/synthetic_head.cpp gives the same 16 to the
+/// generated head) in ARKit's shapes: what makes it positive, what contradicts it negative.
+// clang-format off
+inline constexpr std::array<std::array<float, kNumArkitVisemeInputs + 1>, kNumVisemes> kArkitVisemeTable{{
+    //  aperture pucker funnel stretch smile lowerDown upperUp rollLower shrugLower shrugUpper press constant
+    {{ 1.5f, -1.0f,  0.0f,  0.0f, 0.0f, 0.3f, 0.0f, -0.5f, 0.0f, 0.0f,  0.0f,  0.0f}},  // Aah
+    {{ 2.0f, -1.0f,  0.0f,  0.3f, 0.0f, 0.0f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f, -1.0f}},  // BigAah
+    {{-0.7f,  0.0f,  0.0f,  0.0f, 0.0f, 0.0f, 0.0f,  0.6f, 0.0f, 0.0f,  1.7f,  0.0f}},  // B-M-P
+    {{-0.5f,  0.3f,  0.6f, -0.5f, 0.0f, 0.0f, 0.3f,  0.0f, 0.6f, 0.6f,  0.0f,  0.0f}},  // Ch-J-Sh
+    {{-0.3f, -1.0f,  0.0f,  0.6f, 0.0f, 0.4f, 0.3f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // D-S-T
+    {{-0.5f, -1.0f,  0.0f,  0.7f, 1.0f, 0.0f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // Eee
+    {{ 1.0f, -1.0f,  0.0f,  0.4f, 0.0f, 0.0f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // Eh
+    {{-0.5f, -0.5f,  0.0f,  0.0f, 0.0f, 0.0f, 0.6f,  1.0f, 0.0f, 0.0f, -0.5f,  0.0f}},  // F-V
+    {{ 0.6f, -1.0f,  0.0f,  0.5f, 0.0f, 0.2f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // i
+    {{ 0.8f, -1.0f,  0.0f, -0.3f, 0.0f, 0.4f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // K
+    {{ 0.4f, -1.0f,  0.0f,  0.3f, 0.5f, 0.0f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // N
+    {{ 0.8f,  0.8f,  1.0f, -0.5f, 0.0f, 0.0f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f, -0.5f}},  // Oh
+    {{ 0.0f,  1.0f,  0.5f, -0.5f, 0.0f, 0.0f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // Ooh-Q
+    {{-0.3f,  0.5f,  0.0f, -0.5f, 0.0f, 0.0f, 0.5f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // R
+    {{ 0.3f, -1.0f,  0.0f,  0.0f, 0.0f, 0.6f, 0.0f, -0.5f, 0.4f, 0.0f,  0.0f,  0.0f}},  // Th
+    {{-0.5f,  1.2f,  0.0f, -0.5f, 0.0f, 0.0f, 0.0f,  0.0f, 0.0f, 0.0f,  0.0f,  0.0f}},  // W
+}};
+// clang-format on
+
+/// The 16 viseme weights of a frame's 52 ARKit weights (a model with expression shapes): the
+/// table's weights, then the lips' seal as the pose match has it (transfer_to_bilabial), except
+/// that lips a viseme already closes (W, Ooh-Q puckered; F-V the lower lip on the upper teeth)
+/// are that viseme's: the seal moved is seal · (1 − the largest of W, Ooh-Q and F-V).
+/// Allocates nothing.
+VisemeWeights visemes_from_arkit(std::span<const float, kNumArkit> arkit, double seal);
 
 /// Sealed lips in a shape the landmarks read as open are a bilabial closure (the landmark
 /// regression lags towards a half-open mouth on b, p, m): the articulation the other visemes

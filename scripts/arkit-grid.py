@@ -16,6 +16,13 @@ and fixtures/grid) apart:
                speech words, and the share of bilabial words whose peak is above the 75th
                percentile of the clip's other speech frames
   rounding     mouthPucker and mouthFunnel the same way over "with", "two", "blue"
+  seal         the lips' seal (lip contact from the pixels) the same way over the bilabial, the
+               rounded and the f/v words
+  visemes      the viseme weights the ICT head's ARKit weights give (core/viseme_weights.hpp,
+               docs/arkit.md "Visemes") the same way: B-M-P over the bilabial words (and the
+               words where it reaches 0.5), Aah and BigAah over the words whose vowel is an open
+               one (docs/method.md 7, class 10: AA AE AH AO AY), Ooh-Q and W over the rounded
+               words (UW and a w onset), F-V over the words with f or v
 
 usage: scripts/arkit-grid.py [--mean-face] [--build DIR] [--keep DIR]
 """
@@ -33,6 +40,31 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 SHARED = ROOT.parent / "shared" / "fixtures"
 BILABIAL = {"bin", "blue", "by", "place", "please", "b", "p", "m"}
 ROUNDED = {"with", "two", "blue"}
+# CMU pronunciations of GRID's words: open vowels (class 10), UW or a w onset, f or v.
+OPEN_VOWEL = {"at", "by", "white", "five", "nine", "four", "one", "i", "y", "r"}
+# close vowels (classes 12 and 14 without AW: IH IY UH UW), what the open ones are set against
+CLOSE_VOWEL = {"bin", "in", "with", "six", "green", "three", "please", "b", "c", "d", "e", "g", "p", "t", "v", "z",
+               "blue", "two", "soon", "q", "u"}
+ROUNDED_SPEECH = {"with", "two", "blue", "soon", "q", "u", "one", "y"}
+LABIODENTAL = {"five", "four", "f", "v", "seven"}
+# (reported name, column(s) averaged, target words, what they are, the words they are set
+# against: None = all other speech)
+SERIES = [
+    ("mouthClose", ["arkit_mouthClose"], BILABIAL, "bilabial", None),
+    ("mouthPress", ["arkit_mouthPressLeft", "arkit_mouthPressRight"], BILABIAL, "bilabial", None),
+    ("mouthPucker", ["arkit_mouthPucker"], ROUNDED, "with/two/blue", None),
+    ("mouthFunnel", ["arkit_mouthFunnel"], ROUNDED, "with/two/blue", None),
+    ("seal", ["seal"], BILABIAL, "bilabial", None),
+    ("seal", ["seal"], ROUNDED_SPEECH, "rounded", None),
+    ("seal", ["seal"], LABIODENTAL, "f/v", None),
+    ("viseme B-M-P", ["viseme_B-M-P"], BILABIAL, "bilabial", None),
+    ("viseme Aah", ["viseme_Aah"], OPEN_VOWEL, "open-vowel", None),
+    ("viseme Aah", ["viseme_Aah"], OPEN_VOWEL, "open-vowel", CLOSE_VOWEL),
+    ("viseme BigAah", ["viseme_BigAah"], OPEN_VOWEL, "open-vowel", CLOSE_VOWEL),
+    ("viseme Ooh-Q", ["viseme_Ooh-Q"], ROUNDED_SPEECH, "rounded", None),
+    ("viseme W", ["viseme_W"], ROUNDED_SPEECH, "rounded", None),
+    ("viseme F-V", ["viseme_F-V"], LABIODENTAL, "f/v", None),
+]
 
 
 def pearson(x, y):
@@ -93,9 +125,10 @@ def process_clip(clip, work, build, mean_face, log):
     return table(out)
 
 
-def word_stats(clip_words, targets, weight):
-    """Per clip: (mean over target-word frames, mean over other speech frames, words whose peak
-    is above the 75th percentile of the other speech frames, target words)."""
+def word_stats(clip_words, targets, weight, versus=None):
+    """Per clip: (mean over target-word frames, mean over the other speech frames (those of the
+    words in `versus` when given), words whose peak is above the 75th percentile of those frames,
+    target words, words whose peak reaches 0.5)."""
     n = len(weight)
     target_frames, other_frames, peaks = set(), set(), []
     for first, last, word in clip_words:
@@ -104,7 +137,7 @@ def word_stats(clip_words, targets, weight):
             widened = [f for f in range(max(0, first - 2), min(n - 1, last + 2) + 1) if not math.isnan(weight[f])]
             target_frames.update(widened)
             peaks.append(max((weight[f] for f in widened), default=float("nan")))
-        else:
+        elif versus is None or word in versus:
             other_frames.update(f for f in frames if not math.isnan(weight[f]))
     other_frames -= target_frames
     if not peaks or not other_frames:
@@ -112,7 +145,7 @@ def word_stats(clip_words, targets, weight):
     others = [weight[f] for f in other_frames]
     bar = quantile(others, 0.75)
     return (statistics.fmean(weight[f] for f in target_frames), statistics.fmean(others),
-            sum(p > bar for p in peaks), len(peaks))
+            sum(p > bar for p in peaks), len(peaks), sum(p >= 0.5 for p in peaks))
 
 
 def main():
@@ -128,7 +161,7 @@ def main():
     with open(work / "log.txt", "w") as log:
         for half, clips in halves.items():
             r, pooled_x, pooled_y = [], [], []
-            sums = {k: [0.0, 0.0, 0, 0, 0] for k in ("mouthClose", "mouthPress", "mouthPucker", "mouthFunnel")}
+            sums = [[0.0, 0.0, 0, 0, 0, 0] for _ in SERIES]
             for clip in clips:
                 c = process_clip(clip, work, args.build, args.mean_face, log)
                 tracked = [i for i, t in enumerate(c["tracked"]) if t == 1]
@@ -138,29 +171,22 @@ def main():
                 pooled_x += x
                 pooled_y += y
                 clip_words = words(clip.with_suffix(".align"))
-                series = {
-                    "mouthClose": c["arkit_mouthClose"],
-                    "mouthPress": [(a + b) / 2 for a, b in zip(c["arkit_mouthPressLeft"], c["arkit_mouthPressRight"])],
-                    "mouthPucker": c["arkit_mouthPucker"],
-                    "mouthFunnel": c["arkit_mouthFunnel"],
-                }
-                for name, weight in series.items():
-                    s = word_stats(clip_words, BILABIAL if name in ("mouthClose", "mouthPress") else ROUNDED, weight)
+                for acc, (_, columns, targets, _, versus) in zip(sums, SERIES):
+                    weight = [statistics.fmean(v) for v in zip(*(c[column] for column in columns))]
+                    s = word_stats(clip_words, targets, weight, versus)
                     if s is None:
                         continue
-                    acc = sums[name]
-                    acc[0] += s[0]
-                    acc[1] += s[1]
-                    acc[2] += s[2]
-                    acc[3] += s[3]
-                    acc[4] += 1
+                    for i, value in enumerate(s):
+                        acc[i] += value
+                    acc[5] += 1
             finite = [v for v in r if not math.isnan(v)]
             print(f"{half} ({len(clips)} clips): jawOpen r vs height_2d median {statistics.median(finite):.3f}, "
                   f"mean {statistics.fmean(finite):.3f}, min {min(finite):.3f}, pooled {pearson(pooled_x, pooled_y):.3f}")
-            for name, (target, other, risen, total, n) in sums.items():
-                where = "bilabial" if name in ("mouthClose", "mouthPress") else "with/two/blue"
-                print(f"  {name}: mean {target / n:.3f} over {where} words vs {other / n:.3f} over other speech "
-                      f"({n} clips); peak above the clip's 75th percentile on {risen}/{total} words")
+            for (name, _, _, where, versus), (target, other, risen, total, reached, n) in zip(SERIES, sums):
+                against = "other speech" if versus is None else "close-vowel words"
+                print(f"  {name}: mean {target / n:.3f} over {where} words vs {other / n:.3f} over {against} "
+                      f"({n} clips); peak above the clip's 75th percentile on {risen}/{total} words, "
+                      f"at least 0.5 on {reached}/{total}")
     print(f"tables and profiles in {work}")
 
 

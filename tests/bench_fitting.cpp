@@ -165,5 +165,31 @@ void BM_VisemePoseMatch(benchmark::State& state) {
 
 BENCHMARK(BM_VisemePoseMatch)->Unit(benchmark::kMicrosecond)->Repetitions(5)->ReportAggregatesOnly(true);
 
+// The measures stage's viseme weights on a model with expression shapes (the ICT head): the
+// table over the frame's 52 ARKit weights, then the seal. The work does not depend on the
+// values: random ARKit weights and seals, cycled. Per call, core/statistics' nearest rank.
+void BM_VisemesFromArkit(benchmark::State& state) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> unit(0, 1);
+  std::vector<std::pair<ArkitWeights, double>> frames(256);
+  for (auto& [arkit, seal] : frames) {
+    for (float& w : arkit) w = 0.5f * unit(rng);
+    seal = unit(rng);
+  }
+  std::vector<double> us;
+  us.reserve(static_cast<std::size_t>(state.max_iterations));
+  std::size_t frame = 0;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(visemes_from_arkit(frames[frame].first, frames[frame].second));
+    us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count());
+    frame = (frame + 1) % frames.size();
+  }
+  state.counters["median_us"] = median(us);
+  state.counters["p99_us"] = quantile(us, 0.99);
+}
+
+BENCHMARK(BM_VisemesFromArkit)->Unit(benchmark::kMicrosecond)->Repetitions(5)->ReportAggregatesOnly(true);
+
 }  // namespace
 }  // namespace lipdrive

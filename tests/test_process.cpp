@@ -5,6 +5,7 @@
 #include "core/calibration.hpp"
 #include "core/face_tracker.hpp"
 #include "core/metrics.hpp"
+#include "core/viseme_weights.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
 #include "sim/face_faults.hpp"
@@ -187,6 +188,27 @@ TEST_F(ProcessTest, ArkitColumnsComeFromTheSignalsOrTheFit) {
   int moving = 0;
   for (const std::string_view name : kArkitNames) moving += highest(fitted, name) > 0.05;
   EXPECT_GT(moving, 4);
+
+  // Its visemes are its ARKit weights through the table and the seal (core/viseme_weights.hpp),
+  // to the CSV's 4 decimals; the generated head's come from its poses.
+  std::vector<std::vector<double>> arkit_columns, viseme_columns;
+  for (const std::string_view name : kArkitNames)
+    arkit_columns.push_back(numeric_column(fitted, "arkit_" + std::string(name)));
+  for (const std::string_view name : kVisemeNames)
+    viseme_columns.push_back(numeric_column(fitted, "viseme_" + std::string(name)));
+  const auto fitted_seal = numeric_column(fitted, "seal");
+  double most = 0;
+  for (std::size_t row = 0; row < fitted_seal.size(); ++row) {
+    if (std::isnan(fitted_seal[row])) continue;
+    ArkitWeights arkit;
+    for (int a = 0; a < kNumArkit; ++a) arkit[static_cast<std::size_t>(a)] = static_cast<float>(arkit_columns[a][row]);
+    const VisemeWeights expected = visemes_from_arkit(arkit, fitted_seal[row]);
+    for (int v = 0; v < kNumVisemes; ++v) {
+      EXPECT_NEAR(viseme_columns[v][row], expected[static_cast<std::size_t>(v)], 3e-3) << kVisemeNames[v] << " " << row;
+      most = std::max(most, viseme_columns[v][row]);
+    }
+  }
+  EXPECT_GT(most, 0.5) << "the ICT head's visemes move";
 }
 
 TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {

@@ -1,5 +1,7 @@
 // Viseme weights (core/viseme_weights): the NNLS solver, exact poses, allocation-free solve,
-// and recovery of every default-model pose through a noisy fit.
+// and recovery of every default-model pose through a noisy fit; the ARKit table of a model with
+// expression shapes (known ARKit weights give their viseme, the seal, no allocation, the table
+// in docs/arkit.md is the code's).
 #include "allocation_counter.hpp"
 #include "build_paths.hpp"
 #include "core/viseme_weights.hpp"
@@ -16,9 +18,11 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <random>
 #include <stdexcept>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -353,6 +357,148 @@ TEST(VisemeSolver, PoseMatchAllocatesNothingAndGivesWeightsInRange) {
   for (const float x : w) EXPECT_TRUE(x >= 0 && x <= 1);
   EXPECT_EQ(largest(w), 0) << "noise-free Aah_100";
   EXPECT_NEAR(w[0], 1.0, 0.05);
+}
+
+// ---------------------------------------------------------------------------------
+// Visemes from ARKit weights (a model with expression shapes).
+
+ArkitWeights arkit_of(const std::vector<std::pair<std::string_view, float>>& weights) {
+  ArkitWeights a{};
+  for (const auto& [name, value] : weights) a[static_cast<std::size_t>(*arkit_index(name))] = value;
+  return a;
+}
+
+std::size_t named(std::string_view name) {
+  return static_cast<std::size_t>(std::find(kVisemeNames.begin(), kVisemeNames.end(), name) - kVisemeNames.begin());
+}
+
+std::string_view largest_name(const VisemeWeights& w) { return kVisemeNames[static_cast<std::size_t>(largest(w))]; }
+
+// Each articulation the table is made of, as ARKit weights at levels the ICT head's fit shows
+// on GRID speech, gives its viseme as the largest weight.
+TEST(ArkitVisemes, KnownArkitWeightsGiveTheirViseme) {
+  struct Case {
+    std::string_view expected;
+    std::vector<std::pair<std::string_view, float>> arkit;
+  };
+  const std::vector<Case> cases = {
+      {"Aah", {{"jawOpen", 0.22f}, {"mouthLowerDownLeft", 0.1f}, {"mouthLowerDownRight", 0.1f}}},
+      {"B-M-P", {{"jawOpen", 0.02f}, {"mouthPressLeft", 0.3f}, {"mouthPressRight", 0.3f}, {"mouthRollLower", 0.1f}}},
+      {"W", {{"jawOpen", 0.03f}, {"mouthPucker", 0.4f}}},
+      {"Oh", {{"jawOpen", 0.2f}, {"mouthPucker", 0.3f}, {"mouthFunnel", 0.3f}}},
+      {"F-V", {{"jawOpen", 0.03f}, {"mouthRollLower", 0.25f}, {"mouthUpperUpLeft", 0.3f}, {"mouthUpperUpRight", 0.3f}}},
+      {"Eee",
+       {{"jawOpen", 0.05f},
+        {"mouthStretchLeft", 0.15f},
+        {"mouthStretchRight", 0.15f},
+        {"mouthSmileLeft", 0.3f},
+        {"mouthSmileRight", 0.3f}}},
+      {"Ch-J-Sh", {{"jawOpen", 0.04f}, {"mouthShrugLower", 0.4f}, {"mouthShrugUpper", 0.4f}, {"mouthFunnel", 0.2f}}},
+      {"Th",
+       {{"jawOpen", 0.08f}, {"mouthLowerDownLeft", 0.15f}, {"mouthLowerDownRight", 0.15f}, {"mouthShrugLower", 0.2f}}},
+  };
+  for (const Case& c : cases) {
+    const VisemeWeights w = visemes_from_arkit(arkit_of(c.arkit), 0);
+    EXPECT_EQ(largest_name(w), c.expected);
+    EXPECT_GT(w[named(c.expected)], 0.5) << c.expected;
+  }
+  // The widest opening is BigAah (and Aah); a medium one is Aah, not BigAah.
+  const VisemeWeights wide = visemes_from_arkit(arkit_of({{"jawOpen", 0.34f}}), 0);
+  EXPECT_FLOAT_EQ(wide[named("BigAah")], 1);
+  const VisemeWeights medium = visemes_from_arkit(arkit_of({{"jawOpen", 0.15f}}), 0);
+  EXPECT_EQ(medium[named("BigAah")], 0);
+  EXPECT_GT(medium[named("Aah")], 0.5);
+  // ARKit's mouthClose closes the lips over the open jaw: no opening, no Aah.
+  const VisemeWeights closed_lips = visemes_from_arkit(arkit_of({{"jawOpen", 0.2f}, {"mouthClose", 0.2f}}), 0);
+  EXPECT_EQ(closed_lips[named("Aah")], 0);
+  // At rest (every weight 0) every viseme reads 0, sealed lips or not.
+  for (const double seal : {0.0, 1.0})
+    for (const float w : visemes_from_arkit(ArkitWeights{}, seal)) EXPECT_EQ(w, 0) << seal;
+}
+
+// Sealed lips move the frame's articulation to B-M-P, except the lips a viseme closes itself.
+TEST(ArkitVisemes, TheSealMovesToBilabialUnlessPuckeredOrOnTheTeeth) {
+  const ArkitWeights open = arkit_of({{"jawOpen", 0.15f}});
+  const VisemeWeights sealed = visemes_from_arkit(open, 1);
+  EXPECT_GT(sealed[named("B-M-P")], 0.5) << "the landmarks lag on a closure";
+  EXPECT_EQ(sealed[named("Aah")], 0);
+  const ArkitWeights pucker = arkit_of({{"jawOpen", 0.03f}, {"mouthPucker", 0.45f}});
+  const VisemeWeights sealed_pucker = visemes_from_arkit(pucker, 1);
+  EXPECT_EQ(largest_name(sealed_pucker), "W");
+  EXPECT_EQ(sealed_pucker[named("B-M-P")], 0);
+  const ArkitWeights teeth =
+      arkit_of({{"mouthRollLower", 0.3f}, {"mouthUpperUpLeft", 0.3f}, {"mouthUpperUpRight", 0.3f}});
+  EXPECT_EQ(largest_name(visemes_from_arkit(teeth, 1)), "F-V");
+}
+
+// Any ARKit weights in [0, 1] give weights in [0, 1], and nothing is allocated.
+TEST(ArkitVisemes, WeightsInRangeAndNothingAllocated) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> unit(0, 1);
+  std::vector<ArkitWeights> frames(200);
+  for (ArkitWeights& a : frames)
+    for (float& w : a) w = unit(rng);
+  VisemeWeights sum{};
+  test::count_allocations_on_this_thread(true);
+  const long before = test::allocation_count();
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const VisemeWeights w = visemes_from_arkit(frames[f], f % 2 ? 0.0 : unit(rng));
+    for (int v = 0; v < kNumVisemes; ++v) sum[static_cast<std::size_t>(v)] += w[static_cast<std::size_t>(v)];
+    for (const float x : w) {
+      ASSERT_GE(x, 0);
+      ASSERT_LE(x, 1);
+    }
+  }
+  EXPECT_EQ(test::allocation_count() - before, 0);
+  test::count_allocations_on_this_thread(false);
+  EXPECT_GT(*std::max_element(sum.begin(), sum.end()), 0);
+}
+
+// docs/arkit.md's table is the code's: the inputs, their full levels and every share.
+TEST(ArkitVisemes, TheDocumentedTableIsTheCodes) {
+  std::ifstream in(std::filesystem::path(test::kSourceDir) / "docs" / "arkit.md");
+  ASSERT_TRUE(in);
+  const auto cells = [](const std::string& line) {
+    std::vector<std::string> out;
+    std::stringstream row(line.substr(1));
+    for (std::string cell; std::getline(row, cell, '|');) {
+      const auto first = cell.find_first_not_of(" `"), last = cell.find_last_not_of(" `");
+      out.push_back(first == std::string::npos ? "" : cell.substr(first, last - first + 1));
+    }
+    return out;
+  };
+  const auto number = [](const std::string& cell) {
+    if (cell.empty()) return 0.0f;
+    float value = 0;
+    const auto [end, error] = std::from_chars(cell.data(), cell.data() + cell.size(), value);
+    EXPECT_TRUE(error == std::errc() && end == cell.data() + cell.size()) << cell;
+    return value;
+  };
+  std::string line;
+  while (std::getline(in, line) && !line.starts_with("| viseme | aperture")) {
+  }
+  ASSERT_FALSE(in.eof()) << "no viseme table in docs/arkit.md";
+  const std::vector<std::string> header = cells(line);
+  ASSERT_EQ(header.size(), static_cast<std::size_t>(kNumArkitVisemeInputs + 2));
+  for (int i = 0; i < kNumArkitVisemeInputs; ++i)
+    EXPECT_EQ(header[static_cast<std::size_t>(i + 1)], kArkitVisemeInputs[static_cast<std::size_t>(i)].shape);
+  EXPECT_EQ(header.back(), "constant");
+  std::getline(in, line);  // |---|
+  std::getline(in, line);
+  const std::vector<std::string> full = cells(line);
+  ASSERT_EQ(full.front(), "full level");
+  for (int i = 0; i < kNumArkitVisemeInputs; ++i)
+    EXPECT_FLOAT_EQ(number(full[static_cast<std::size_t>(i + 1)]), kArkitVisemeInputs[static_cast<std::size_t>(i)].full)
+        << header[static_cast<std::size_t>(i + 1)];
+  for (int v = 0; v < kNumVisemes; ++v) {
+    ASSERT_TRUE(std::getline(in, line));
+    const std::vector<std::string> row = cells(line);
+    ASSERT_EQ(row.size(), header.size()) << line;
+    EXPECT_EQ(row.front(), kVisemeNames[static_cast<std::size_t>(v)]);
+    for (std::size_t i = 0; i + 1 < row.size(); ++i)
+      EXPECT_FLOAT_EQ(number(row[i + 1]), kArkitVisemeTable[static_cast<std::size_t>(v)][i])
+          << row.front() << " " << header[i + 1];
+  }
 }
 
 }  // namespace

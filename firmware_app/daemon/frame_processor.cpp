@@ -36,7 +36,13 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   r.measures = measure_mouth(r.landmarks, fit_, reference_);
   r.measures.seal = seal_probability(lips, r.measures.height_2d);
   r.measures.open = fused_opening(r.measures.height_2d, r.measures.seal);
-  if (visemes_) {
+  // Visemes by the model's kind: from the ARKit weights of the expression fit, or by matching
+  // the model's viseme poses; either moves sealed lips to B-M-P.
+  if (arkit_.from_fit()) {
+    ArkitWeights arkit;
+    arkit_.from_expressions(std::span<const double>(fit_.expressions.data(), fit_.expressions.size()), arkit);
+    r.visemes = visemes_from_arkit(arkit, r.measures.seal);
+  } else if (visemes_) {
     r.visemes = visemes_->solve(fit_, r.landmarks);
     transfer_to_bilabial(r.visemes, r.measures.seal);
   }

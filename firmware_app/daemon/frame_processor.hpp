@@ -21,7 +21,7 @@ namespace lipdrive {
 struct FrameMeasurement {
   bool tracked = false;  // a face was tracked and the fit explains it: `measures` is valid
   MouthMeasures measures;
-  VisemeWeights visemes{};  // valid when `tracked`; all zero when the model has no viseme poses
+  VisemeWeights visemes{};  // valid when `tracked`; all zero for a model without expression shapes or viseme poses
   Landmarks2D landmarks;    // the tracked landmarks, valid when `tracked`
   double appearance = 0;    // FaceTracker::appearance() of this frame
   // Time spent in each stage (ms); NaN when the stage did not run for this frame.
@@ -59,7 +59,7 @@ class FrameProcessor {
   Fitter fitter_;
   ArkitMap arkit_;
   MouthReference reference_;
-  std::optional<VisemeSolver> visemes_;  // nullopt: the model lacks the viseme poses
+  std::optional<VisemeSolver> visemes_;  // the pose match; nullopt: the model lacks the viseme poses
   FaceTracker tracker_;
   FitOutput fit_ = Fitter::initial_output();  // warm start of the next frame
   FrameMeasurement result_;
