@@ -16,12 +16,12 @@ cd "$(dirname "$0")/.."
 
 # The threaded tests: the pipeline's threads and hand-offs, every output kind (Modbus server
 # and client, serial, GPIO, DMX and OSC senders), the OSC control port, timecode and audio
-# capture, the monitor page, the daemon run end to end (outputs, show network, face faults),
-# reload and stop, kill -9 and restart, and the soak with every camera fault (shortened to
-# LIPDRIVE_SOAK_SECONDS).
+# capture, the voice room, the monitor page, the daemon run end to end (outputs, show network,
+# face faults, the voice taking over), reload and stop, kill -9 and restart, and the soak with
+# every camera fault (shortened to LIPDRIVE_SOAK_SECONDS).
 threaded=(test_pipeline test_modbus test_serial test_gpio test_osc test_dmx test_timecode test_audio_input
-  test_monitor test_daemon_outputs test_daemon_dmx test_daemon_osc test_daemon_timecode test_daemon_face_faults
-  test_reload test_crash_restart test_soak)
+  test_voice_room test_monitor test_daemon_outputs test_daemon_dmx test_daemon_osc test_daemon_timecode
+  test_daemon_face_faults test_daemon_voice test_reload test_crash_restart test_soak)
 # The tests CI runs under ASan + UBSan (asan-ci): every parser of outside input, the drivers,
 # the outputs (Modbus, serial, DMX, OSC, GPIO) and the numeric units; none of them has a
 # real-time bound that ASan's slower code could miss. Left to the full lane (asan): the
@@ -47,7 +47,11 @@ build() {
   local jobs=$(($(nproc) < 2 ? $(nproc) : 2))
   case "$lane" in
     asan) flags=(-DLIPDRIVE_SANITIZE=address,undefined -DLIPDRIVE_FUZZ=ON) ;;
-    tsan) flags=(-DLIPDRIVE_SANITIZE=thread) ;;
+    tsan)
+      flags=(-DLIPDRIVE_SANITIZE=thread)
+      # The build runs lipdrive-dev to generate the fixtures, under ThreadSanitizer too.
+      export TSAN_OPTIONS="suppressions=$suppressions/tsan.supp"
+      ;;
     *) echo "usage: $0 build asan|tsan [TARGET...]" >&2; exit 2 ;;
   esac
   CC=clang CXX=clang++ cmake -S . -B "build-$lane" -DCMAKE_BUILD_TYPE=RelWithDebInfo "${flags[@]}" >/dev/null
@@ -105,7 +109,7 @@ case "${1:-}" in
     export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$suppressions/tsan.supp:log_path=$reports"
     # The soak's threads and faults for 20 s instead of a minute (tests/test_soak.cpp).
     export LIPDRIVE_SOAK_SECONDS=20
-    filter="^($(IFS='|'; echo "${threaded[*]}"))\$"
+    filter="^($(IFS='|'; echo "${threaded[*]}"))(_shared)?\$"
     run_tests tsan -R "$filter" "$@"
     ;;
   *)
