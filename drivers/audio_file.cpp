@@ -9,6 +9,9 @@ extern "C" {
 #include <libswresample/swresample.h>
 }
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <memory>
 
 namespace lipdrive {
@@ -135,6 +138,96 @@ DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate) {
   if (sample_rate < 8000 || sample_rate > 192'000)
     throw AudioSourceError(fmt::format("{}: sample rate {} Hz out of range", file.string(), sample_rate));
   return TrackDecoder(file, sample_rate).decode();
+}
+
+struct WavWriter::Muxer {
+  struct Closer {
+    void operator()(AVFormatContext* c) const {
+      if (c->pb != nullptr) avio_closep(&c->pb);
+      avformat_free_context(c);
+    }
+  };
+  std::unique_ptr<AVFormatContext, Closer> format;
+  ffmpeg::Packet packet{av_packet_alloc()};
+  bool open = false;  // the header is written and the trailer is not
+};
+
+WavWriter::WavWriter(const std::filesystem::path& file, int sample_rate)
+    : muxer_(std::make_unique<Muxer>()), name_(file.string()) {
+  const auto fail = [&](const std::string& why) { throw AudioSourceError(fmt::format("{}: {}", name_, why)); };
+  AVFormatContext* format = nullptr;
+  if (avformat_alloc_output_context2(&format, nullptr, "wav", name_.c_str()) < 0 || format == nullptr)
+    fail("FFmpeg has no WAV muxer");
+  muxer_->format.reset(format);
+  AVStream* stream = avformat_new_stream(format, nullptr);
+  if (stream == nullptr || !muxer_->packet) fail("out of memory");
+  AVCodecParameters& p = *stream->codecpar;
+  p.codec_type = AVMEDIA_TYPE_AUDIO;
+  p.codec_id = AV_CODEC_ID_PCM_S16LE;
+  p.sample_rate = sample_rate;
+  av_channel_layout_default(&p.ch_layout, 1);
+  p.bits_per_coded_sample = 16;
+  p.block_align = 2;
+  p.bit_rate = 16LL * sample_rate;
+  stream->time_base = {1, sample_rate};
+  if (const int e = avio_open(&format->pb, name_.c_str(), AVIO_FLAG_WRITE); e < 0)
+    fail(fmt::format("cannot create: {}", error_text(e)));
+  if (const int e = avformat_write_header(format, nullptr); e < 0)
+    fail(fmt::format("cannot write the header: {}", error_text(e)));
+  muxer_->open = true;
+}
+
+WavWriter::~WavWriter() {
+  try {
+    close();
+  } catch (const AudioSourceError&) {  // close() is the place to hear about it
+  }
+}
+
+void WavWriter::write(std::span<const float> samples) {
+  std::array<std::int16_t, 1024> pcm{};
+  while (!samples.empty()) {
+    const std::size_t count = std::min(samples.size(), pcm.size());
+    for (std::size_t i = 0; i < count; ++i)
+      pcm[i] = static_cast<std::int16_t>(std::lround(std::clamp(samples[i], -1.0f, 1.0f) * 32767.0f));
+    write_pcm(pcm.data(), static_cast<int>(count));
+    samples = samples.subspan(count);
+  }
+}
+
+void WavWriter::write_silence(std::int64_t count) {
+  const std::array<std::int16_t, 1024> zeros{};
+  for (; count > 0; count -= static_cast<std::int64_t>(zeros.size()))
+    write_pcm(zeros.data(), static_cast<int>(std::min<std::int64_t>(count, zeros.size())));
+}
+
+void WavWriter::write_pcm(const std::int16_t* pcm, int count) {
+  if (!muxer_->open) throw AudioSourceError(fmt::format("{}: written after it was closed", name_));
+  AVPacket& packet = *muxer_->packet;
+  // Not reference-counted: the muxer writes the bytes before av_write_frame returns.
+  packet.data = reinterpret_cast<std::uint8_t*>(const_cast<std::int16_t*>(pcm));
+  packet.size = 2 * count;
+  packet.stream_index = 0;
+  packet.pts = packet.dts = samples_;
+  packet.duration = count;
+  const int e = av_write_frame(muxer_->format.get(), &packet);
+  packet.data = nullptr;
+  packet.size = 0;
+  if (e < 0) throw AudioSourceError(fmt::format("{}: cannot write: {}", name_, error_text(e)));
+  samples_ += count;
+}
+
+void WavWriter::close() {
+  if (!muxer_->open) return;
+  muxer_->open = false;
+  AVFormatContext* format = muxer_->format.get();
+  const int trailer = av_write_trailer(format);
+  avio_flush(format->pb);
+  const int error = format->pb->error;
+  avio_closep(&format->pb);
+  if (trailer < 0 || error < 0)
+    throw AudioSourceError(
+        fmt::format("{}: cannot finish the file: {}", name_, error_text(trailer < 0 ? trailer : error)));
 }
 
 }  // namespace lipdrive

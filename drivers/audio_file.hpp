@@ -1,11 +1,14 @@
-// The audio track of a recording, decoded whole with FFmpeg's libraries (libavformat,
-// libavcodec, libswresample): the simulated microphone of a replayed clip, and the sound the
-// voice model is trained and evaluated on.
+// Sound files through FFmpeg's libraries (libavformat, libavcodec, libswresample): the audio
+// track of a recording decoded whole (the simulated microphone of a replayed clip, the sound
+// the voice model is trained and evaluated on), and the WAV file a take's sound is written to.
 #pragma once
 
 #include "drivers/audio_source.hpp"
 
+#include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <span>
 #include <vector>
 
 namespace lipdrive {
@@ -23,5 +26,35 @@ struct DecodedAudio {
 /// AudioSourceError naming the file: it cannot be opened or read, it has no audio track, or
 /// the track cannot be decoded.
 DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate);
+
+/// A mono 16-bit PCM WAV file written block by block through FFmpeg's WAV muxer. The sizes in
+/// its header are set when it is closed; a file cut short (a crash) still decodes up to its
+/// last block. Thread model: one thread makes every call.
+class WavWriter {
+ public:
+  /// Creates (or replaces) `file`. Throws AudioSourceError naming the file when it cannot.
+  WavWriter(const std::filesystem::path& file, int sample_rate);
+  /// Closes the file; errors are not reported here (call close() to see them).
+  ~WavWriter();
+  WavWriter(const WavWriter&) = delete;
+  WavWriter& operator=(const WavWriter&) = delete;
+
+  /// Appends samples in [-1, 1] (clipped). Throws AudioSourceError on a write error.
+  void write(std::span<const float> samples);
+  /// Appends `count` samples of silence.
+  void write_silence(std::int64_t count);
+  /// Samples written so far.
+  std::int64_t samples() const { return samples_; }
+  /// Sets the header's sizes and closes the file. Throws AudioSourceError on a write error.
+  void close();
+
+ private:
+  void write_pcm(const std::int16_t* pcm, int count);
+
+  struct Muxer;
+  std::unique_ptr<Muxer> muxer_;
+  std::string name_;
+  std::int64_t samples_ = 0;
+};
 
 }  // namespace lipdrive

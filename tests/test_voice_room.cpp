@@ -6,8 +6,11 @@
 #include "build_paths.hpp"
 #include "command_run.hpp"
 #include "daemon_process.hpp"
+#include "drivers/audio_file.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "firmware_app/daemon/take_sound.hpp"
 #include "firmware_app/daemon/voice_room.hpp"
+#include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
 #include "serial_peers.hpp"
 
@@ -115,6 +118,130 @@ TEST(VoiceRoom, AQuietVoiceRestsAndIsNewestFirst) {
   EXPECT_FALSE(state.active);
   EXPECT_FLOAT_EQ(state.measures[0], 0.05f) << "the rest pose";
   EXPECT_FLOAT_EQ(state.measures[3], 0.9f);
+}
+
+// ---- the takes' sound ----------------------------------------------------------------------
+
+/// Sample n of a signal on one timeline: captured at kStartNs + n / kRate s.
+float timeline_sample(std::int64_t n) { return static_cast<float>(((n * 37) % 200 + 200) % 200 - 100) / 200.0f; }
+std::int64_t timeline_ns(std::int64_t n) { return kStartNs + n * 1'000'000'000 / kRate; }
+
+AudioBlock timeline_block(std::int64_t first, std::int64_t stamp_offset = 0) {
+  AudioBlock block;
+  for (int i = 0; i < kBlock; ++i) block.samples[static_cast<std::size_t>(i)] = timeline_sample(first + i);
+  block.frames = kBlock;
+  block.sample_rate = kRate;
+  block.capture_time_ns = timeline_ns(first + stamp_offset);
+  return block;
+}
+
+TEST(TakeSound, TheFilesFirstSampleIsTheFirstRowsAndGapsAreSilence) {
+  test::TempDir dir;
+  const fs::path wav = dir.path() / "take.wav";
+  TakeSound sound(kRate);
+  sound.open(wav);
+  sound.push(timeline_block(-kBlock));  // before the first row: cut
+  sound.push(timeline_block(0));        // holds the first row's sample 100
+  sound.push(timeline_block(kBlock));
+  sound.drain();  // waits for the first row
+  sound.start_at(timeline_ns(100));
+  sound.push(timeline_block(kBlock));  // again: nothing new
+  sound.drain();
+  // Block 3 is lost; block 5's stamp is 1 sample late (clock jitter): it continues block 4.
+  const long before = test::allocation_count();
+  test::count_allocations_on_this_thread(true);
+  sound.push(timeline_block(2 * kBlock));
+  sound.push(timeline_block(4 * kBlock));
+  sound.push(timeline_block(5 * kBlock, 1));
+  test::count_allocations_on_this_thread(false);
+  EXPECT_EQ(test::allocation_count() - before, 0) << "push() allocates nothing";
+  sound.close();
+
+  const DecodedAudio back = decode_audio(wav, kRate);
+  ASSERT_EQ(back.samples.size(), static_cast<std::size_t>(6 * kBlock - 100));
+  for (std::size_t k = 0; k < back.samples.size(); ++k) {
+    const std::int64_t n = 100 + static_cast<std::int64_t>(k);
+    const float expected = n >= 3 * kBlock && n < 4 * kBlock ? 0.0f : timeline_sample(n);
+    ASSERT_NEAR(back.samples[k], expected, 1e-4) << "file sample " << k << " (timeline " << n << ")";
+  }
+}
+
+TEST(TakeSound, WithoutATakeTheBlocksAreDropped) {
+  test::TempDir dir;
+  TakeSound sound(kRate);
+  for (int b = 0; b < 1000; ++b) {  // far more than the ring holds: drained, nothing kept
+    sound.push(timeline_block(b * kBlock));
+    sound.drain();
+  }
+  sound.open(dir.path() / "take.wav");
+  sound.start_at(timeline_ns(1000 * kBlock));
+  sound.push(timeline_block(1000 * kBlock));
+  sound.close();
+  EXPECT_EQ(decode_audio(dir.path() / "take.wav", kRate).samples.size(), static_cast<std::size_t>(kBlock));
+}
+
+// A take recorded with [voice] keeps its sound beside it, on its rows' timeline, and trains a
+// voice model: the generated clip with a sound track of noise bursts muxed in by ffmpeg.
+TEST(TakeSound, TheDaemonsTakeCarriesItsSoundAndTrainsAVoice) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  test::TempDir dir;
+  const fs::path clip = dir.path() / "talking.avi", takes = dir.path() / "takes";
+  const test::CommandRun mux = test::run_command(fmt::format(
+      "ffmpeg -loglevel error -i {} -f lavfi -i \"aevalsrc=exprs='(random(0)*2-1)*0.5*pow(max(0\\,sin(2*PI*2.5*t))"
+      "\\,2)':d=10:s=16000\" -map 0:v -map 1:a -c:v copy -c:a pcm_s16le -shortest {} 2>&1",
+      test::kClip.string(), clip.string()));
+  ASSERT_EQ(mux.exit_code, 0) << mux.output;
+  VoiceModel model = constant_model();
+  const fs::path model_file = dir.path() / "performer.lpv";
+  save_voice_model_file(model_file, model);
+  const fs::path config = dir.path() / "lipdrive.toml";
+  std::ofstream(config) << fmt::format(
+      "[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\nreal_time = true\n[status]\nprint_interval_ms = 0\n"
+      "[recording]\ndir = \"{}\"\n[voice]\nenabled = true\nmodel = \"{}\"\ninput = \"sim\"\n",
+      test::kModel.string(), clip.string(), takes.string(), model_file.string());
+  {
+    test::DaemonProcess daemon(config, dir.path() / "daemon.txt", "--record --frames 120");
+    ASSERT_EQ(daemon.wait(60s), 0) << daemon.log();
+  }
+  fs::path take;
+  for (const auto& entry : fs::directory_iterator(takes))
+    if (entry.path().extension() == ".csv") take = entry.path();
+  ASSERT_FALSE(take.empty());
+  const fs::path wav = fs::path(take).replace_extension(".wav");
+  ASSERT_TRUE(fs::exists(wav));
+
+  // The file's sample k is the clip's sound at the first row's media time + k / rate.
+  const CsvTable rows = read_csv_table(take);
+  const std::vector<double> media = numeric_column(rows, "time_s"), captured = numeric_column(rows, "capture_time_ns");
+  const DecodedAudio recorded = decode_audio(wav, kRate), original = decode_audio(clip, kRate);
+  const double take_s = (captured.back() - captured.front()) * 1e-9;
+  EXPECT_NEAR(recorded.samples.size() / static_cast<double>(kRate), take_s, 0.1) << "sound as long as the rows";
+  const auto expected = static_cast<std::int64_t>(std::llround((media.front() - original.start_s) * kRate));
+  constexpr std::int64_t kWindow = kRate, kSearch = kRate / 8;  // 1 s compared, lags within 125 ms
+  ASSERT_GE(static_cast<std::int64_t>(recorded.samples.size()), kWindow);
+  std::int64_t best_lag = 0;
+  double best = -1;
+  for (std::int64_t lag = std::max<std::int64_t>(0, expected - kSearch); lag <= expected + kSearch; ++lag) {
+    if (lag + kWindow > static_cast<std::int64_t>(original.samples.size())) break;
+    double dot = 0;
+    for (std::int64_t k = 0; k < kWindow; ++k)
+      dot += recorded.samples[static_cast<std::size_t>(k)] * original.samples[static_cast<std::size_t>(lag + k)];
+    if (dot > best) best = dot, best_lag = lag;
+  }
+  EXPECT_LE(std::abs(best_lag - expected), kBlock) << "the sound keeps to the rows within one 10 ms block";
+  RecordProperty("take_sound_offset_samples", static_cast<int>(best_lag - expected));
+
+  const test::CommandRun train = test::run_command(
+      fmt::format("{} voice train --out {} --hidden 0 --cepstra 4 --past-ms 40 --lookahead-ms 20 {} 2>&1",
+                  test::kLipdrive, (dir.path() / "trained.lpv").string(), take.string()));
+  EXPECT_EQ(train.exit_code, 0) << train.output;
+  EXPECT_TRUE(fs::exists(dir.path() / "trained.lpv")) << train.output;
+  // A take without its sound is named.
+  fs::remove(wav);
+  const test::CommandRun alone = test::run_command(
+      fmt::format("{} voice train --out {} {} 2>&1", test::kLipdrive, (dir.path() / "x.lpv").string(), take.string()));
+  EXPECT_EQ(alone.exit_code, 66) << alone.output;
+  EXPECT_NE(alone.output.find(wav.string() + ": no such take sound"), std::string::npos) << alone.output;
 }
 
 // ---- a voice that cannot be heard: the daemon drives from the video ----------------------

@@ -97,7 +97,9 @@ void add_training_options(CLI::App* cmd, TrainingOptions& o, bool sweep) {
   cmd->add_option("--gate-ms", o.gate_ms, "cross-fade to and from rest on voice activity, ms")
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
-  cmd->add_option("--epochs", o.epochs, "hidden layer: training steps")->check(CLI::Range(1, 100000))->capture_default_str();
+  cmd->add_option("--epochs", o.epochs, "hidden layer: training steps")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   cmd->add_option("--learning-rate", o.learning_rate, "hidden layer: Adam's step size")
       ->check(CLI::Range(1e-6, 1.0))
       ->capture_default_str();
@@ -135,8 +137,10 @@ Scores score(const VoiceModel& model, const VoiceRecording& recording) {
   // The final silence: from 3 frames into the last silent stretch to the end (docs/method.md 5).
   int first = static_cast<int>(n), last = static_cast<int>(n) - 1;
   while (first > 0 && !speech[static_cast<std::size_t>(first - 1)]) --first;
-  if (first == static_cast<int>(n) || first == 0) first = last + 1;  // no speech or no final silence
-  else first += ClosureMetric::kSilenceDelay;
+  if (first == static_cast<int>(n) || first == 0)
+    first = last + 1;  // no speech or no final silence
+  else
+    first += ClosureMetric::kSilenceDelay;
   Scores s;
   s.name = recording.name;
   for (std::size_t k = 0; k < kNumVoiceTargets; ++k) {
@@ -179,8 +183,8 @@ nlohmann::json summary(const std::vector<Scores>& scores) {
 }
 
 void print_scores(const std::vector<Scores>& scores, const std::string& title) {
-  fmt::print("{}\n{:<40} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8}\n", title, "recording", "frames", "open r",
-             "sd", "silence", "width r", "prot r", "seal r");
+  fmt::print("{}\n{:<40} {:>6} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8}\n", title, "recording", "frames", "open r", "sd",
+             "silence", "width r", "prot r", "seal r");
   for (const Scores& s : scores) {
     const auto& t = s.targets;
     fmt::print("{:<40} {:>6} {:>7.3f} {:>7.2f} {:>7.3f} {:>7.3f} {:>7.3f} {:>8.3f}\n",
@@ -229,7 +233,8 @@ struct EvalCommand {
 
 void run_eval(const EvalCommand& c) {
   if (!c.voice.empty() == !c.train.empty())
-    throw CLI::ValidationError("--voice / --train", "give either a trained model (--voice) or material to train on (--train)");
+    throw CLI::ValidationError("--voice / --train",
+                               "give either a trained model (--voice) or material to train on (--train)");
   if (c.folds == 0 && c.test.empty())
     throw CLI::ValidationError("--test", "recordings to evaluate on (or --folds K to cross-validate --train)");
   nlohmann::json report;
@@ -259,7 +264,8 @@ void run_eval(const EvalCommand& c) {
           for (const VoiceRecording& r : held_out) scores.push_back(score(model, r));
           entry["delay_ms"] = model.delay_s() * 1000;
         }
-        if (!c.json) print_scores(scores, fmt::format("cross-validation, {} folds, look-ahead {} ms", c.folds, lookahead));
+        if (!c.json)
+          print_scores(scores, fmt::format("cross-validation, {} folds, look-ahead {} ms", c.folds, lookahead));
         entry["cross_validation"] = summary(scores);
       }
       if (!test_set.empty()) {
@@ -267,7 +273,8 @@ void run_eval(const EvalCommand& c) {
         std::vector<Scores> scores;
         for (const VoiceRecording& r : test_set) scores.push_back(score(model, r));
         if (!c.json)
-          print_scores(scores, fmt::format("test, look-ahead {} ms (delay {:.0f} ms)", lookahead, model.delay_s() * 1000));
+          print_scores(scores,
+                       fmt::format("test, look-ahead {} ms (delay {:.0f} ms)", lookahead, model.delay_s() * 1000));
         entry["delay_ms"] = model.delay_s() * 1000;
         entry["test"] = summary(scores);
       }
@@ -284,11 +291,14 @@ void add_voice_command(CLI::App& app) {
   voice->require_subcommand(1);
 
   auto train = std::make_shared<TrainCommand>();
-  CLI::App* t = voice->add_subcommand("train", "Learn a voice model (.lpv) from clips with sound (their video tracked)");
-  t->add_option("INPUT", train->inputs, "clips with sound (the video is tracked)")
+  CLI::App* t = voice->add_subcommand("train",
+                                      "Learn a voice model (.lpv) from clips with sound (their video tracked) or the "
+                                      "daemon's takes (NAME.csv with its sound NAME.wav)");
+  t->add_option("INPUT", train->inputs, "clips with sound (the video is tracked), or takes (.csv) with their sound")
       ->required();
   t->add_option("--out", train->out, "the voice model file to write (.lpv)")->required();
-  t->add_option("--config", train->config, "the daemon's configuration: the tracker and fit the clips are measured with");
+  t->add_option("--config", train->config,
+                "the daemon's configuration: the tracker and fit the clips are measured with");
   add_training_options(t, train->training, false);
   t->callback([train] { run_train(*train); });
 
@@ -300,7 +310,8 @@ void add_voice_command(CLI::App& app) {
   e->add_option("--test", eval->test, "recordings to evaluate on");
   e->add_option("--folds", eval->folds, "cross-validate on --train: K folds by recording (recording i in fold i mod K)")
       ->check(CLI::Range(2, 100));
-  e->add_option("--config", eval->config, "the daemon's configuration: the tracker and fit the clips are measured with");
+  e->add_option("--config", eval->config,
+                "the daemon's configuration: the tracker and fit the clips are measured with");
   e->add_flag("--json", eval->json, "print the figures as JSON");
   add_training_options(e, eval->training, true);
   e->callback([eval] { run_eval(*eval); });

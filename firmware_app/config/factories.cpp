@@ -75,7 +75,7 @@ std::unique_ptr<TimecodeSource> make_timecode(const Config& config) {
   return nullptr;
 }
 
-std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s) {
+std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s, TakeSound* sound) {
   const Config::Voice& voice = config.voice;
   if (!voice.enabled) return nullptr;
   const std::string video_only = "the drive follows the video alone";
@@ -111,7 +111,7 @@ std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* cl
     input = std::move(capture);
   }
   try {
-    auto room = std::make_unique<VoiceRoom>(std::move(input), model);
+    auto room = std::make_unique<VoiceRoom>(std::move(input), model, sound);
     spdlog::info("{}, model {} (delay {:.0f} ms: look-ahead {:.0f} ms + half the analysis window)", room->describe(),
                  voice.model.string(), model.delay_s() * 1e3,
                  1e3 * model.context.lookahead * model.features.hop / model.features.sample_rate);
@@ -143,9 +143,10 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
     if (profile.identity->model_fingerprint == identity_fingerprint(*loaded))
       identity = profile.identity->vector(loaded->num_components());
     else
-      spdlog::warn("performer {}: the profile's identity was fitted to another model than {}; fitting the mean face "
-                   "until `lipdrive calibrate` runs with this model",
-                   config.performer.name, model.file.string());
+      spdlog::warn(
+          "performer {}: the profile's identity was fitted to another model than {}; fitting the mean face "
+          "until `lipdrive calibrate` runs with this model",
+          config.performer.name, model.file.string());
   }
   try {
     return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit, files.predictor(config.tracker.predictor),

@@ -3,8 +3,8 @@
 // alike, so that offline results and the rig's come from the same settings.
 #pragma once
 
-#include "drivers/frame_source.hpp"
 #include "core/calibration.hpp"
+#include "drivers/frame_source.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
@@ -27,7 +27,7 @@ std::unique_ptr<FrameSource> make_source(const Config& config, ReplayClock* cloc
 /// naming the file and the daemon drives from the video alone. A sound card that cannot be
 /// opened yet is logged and retried (video only meanwhile). `clock` and `loop_s`: the
 /// simulated camera's timeline and its replay's length when it loops (else 0), for input "sim".
-std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s);
+std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s, TakeSound* sound);
 
 /// The [side_camera], or nullptr when it is not enabled.
 std::unique_ptr<SideCamera> make_side_camera(const Config& config);

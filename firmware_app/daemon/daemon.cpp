@@ -48,11 +48,13 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
   std::unique_ptr<FrameSource> source = make_source(config_, sim_voice ? &replay_clock_ : nullptr);
   const double loop_s =
       sim_voice && config_.camera.sim.loop ? static_cast<const SimulatedCamera&>(*source).duration_s() : 0.0;
-  voice_ = make_voice_room(config_, &replay_clock_, loop_s);
+  if (config_.voice.enabled) sound_ = std::make_unique<TakeSound>(config_.voice.alsa.sample_rate);
+  voice_ = make_voice_room(config_, &replay_clock_, loop_s, sound_.get());
+  if (!voice_) sound_.reset();
   timecode_ = make_timecode(config_);
-  recorder_ =
-      std::make_unique<TakeRecorder>(source->describe(), std::chrono::milliseconds(config_.recording.flush_interval_ms),
-                                     timecode_ ? std::optional<TimecodeRate>(timecode_->rate()) : std::nullopt);
+  recorder_ = std::make_unique<TakeRecorder>(
+      source->describe(), std::chrono::milliseconds(config_.recording.flush_interval_ms),
+      timecode_ ? std::optional<TimecodeRate>(timecode_->rate()) : std::nullopt, sound_.get());
   pipeline_ = std::make_unique<Pipeline>(std::move(source), std::move(processor), settings, control_);
   if (auto side = make_side_camera(config_)) {
     spdlog::info("side camera: {}", side->describe());

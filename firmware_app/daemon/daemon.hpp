@@ -8,7 +8,8 @@
 // control), then the pipeline's (they use the feed, the outputs, the recorder, the voice room
 // and the drive control), then the outputs and their threads go (the Modbus server writes the
 // drive control), the recorder, the voice room's thread is joined (its simulated microphone
-// reads the replay clock), and the drive control and the replay clock last. A constructor that
+// reads the replay clock), the takes' sound (both push into it), and the drive control and the
+// replay clock last. A constructor that
 // throws half-way unwinds in the same order.
 #pragma once
 
@@ -86,6 +87,7 @@ class Daemon {
   DriveControl
       control_;  // written by the Modbus server's thread, the GPIO buttons and the OSC control, read by the pipeline
   std::unique_ptr<TimecodeSource> timecode_;  // read by the pipeline's processing thread
+  std::unique_ptr<TakeSound> sound_;          // [voice]: the voice room's thread writes it, the recorder's reads it
   std::unique_ptr<VoiceRoom> voice_;          // [voice]: read by the pipeline's threads
   std::unique_ptr<TakeRecorder> recorder_;
   std::unique_ptr<OscControl> osc_control_;       // its thread writes control_

@@ -31,10 +31,11 @@ std::filesystem::path take_file_name(const std::filesystem::path& dir, const std
 }
 
 TakeRecorder::TakeRecorder(std::string source, std::chrono::milliseconds flush_interval,
-                           std::optional<TimecodeRate> timecode_rate)
+                           std::optional<TimecodeRate> timecode_rate, TakeSound* sound)
     : source_(std::move(source)),
       flush_interval_(flush_interval),
       timecode_rate_(timecode_rate),
+      sound_(sound),
       thread_(&TakeRecorder::run, this) {}
 
 TakeRecorder::~TakeRecorder() {
@@ -86,6 +87,7 @@ void TakeRecorder::run() {
     }
     apply_request();
     drain();
+    if (sound_) sound_->drain();
     if (fd_.valid() && std::chrono::steady_clock::now() - last_sync_ >= flush_interval_) {
       if (::fdatasync(fd_.get()) != 0)
         fail(fmt::format("{}: recording stopped: {}", file_.string(), std::strerror(errno)));
@@ -125,6 +127,10 @@ void TakeRecorder::open_take(const std::filesystem::path& file) {
   }
   last_sync_ = std::chrono::steady_clock::now();
   spdlog::info("recording a take to {}", file.string());
+  if (sound_) {
+    sound_->open(std::filesystem::path(file).replace_extension(".wav"));
+    sound_zero_pending_ = true;
+  }
   // With a timecode the header names the first row's, so it waits for that row.
   header_pending_ = true;
   if (timecode_rate_) return;
@@ -142,6 +148,7 @@ void TakeRecorder::close_take() {
   }
   ::fdatasync(fd_.get());
   fd_.reset();
+  if (sound_) sound_->close();
   const std::uint64_t lost = rows_lost_.exchange(0);
   if (lost > 0)
     spdlog::warn("{}: take closed; {} rows were lost because the storage could not keep up", file_.string(), lost);
@@ -155,6 +162,10 @@ void TakeRecorder::drain() {
   if (head == tail) return;
   lines_.clear();
   if (fd_.valid() && header_pending_) append_header(&ring_[tail % kRingSize]);
+  if (fd_.valid() && sound_ && sound_zero_pending_) {
+    sound_->start_at(ring_[tail % kRingSize].capture_time_ns);
+    sound_zero_pending_ = false;
+  }
   for (; fd_.valid() && tail != head; ++tail) {
     const FrameResult& r = ring_[tail % kRingSize];
     append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr, r.visemes,

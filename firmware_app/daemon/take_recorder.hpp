@@ -3,7 +3,7 @@
 // timecode source is configured, the frame's timecode; the take then begins with a comment
 // line naming the timecode of its first frame), written by a
 // thread of its own so that slow or failing storage never holds up the pipeline or the
-// outputs.
+// outputs. With a voice input the take's sound goes beside it (NAME.wav, TakeSound).
 //
 // The processing thread hands results over through a fixed-size single-producer ring; the
 // recorder thread formats them and appends complete lines only, one write() per batch, and
@@ -15,6 +15,7 @@
 #include "core/timecode.hpp"
 #include "drivers/unique_fd.hpp"
 #include "firmware_app/daemon/frame_result.hpp"
+#include "firmware_app/daemon/take_sound.hpp"
 
 #include <fmt/format.h>
 
@@ -37,9 +38,10 @@ std::filesystem::path take_file_name(const std::filesystem::path& dir, const std
 class TakeRecorder : public ResultSink {
  public:
   /// `source`: the source column of every row. `timecode_rate`: the rows carry a timecode
-  /// column at this rate.
+  /// column at this rate. `sound`: the voice input's sound, written beside every take (it
+  /// must outlive the recorder).
   TakeRecorder(std::string source, std::chrono::milliseconds flush_interval,
-               std::optional<TimecodeRate> timecode_rate = std::nullopt);
+               std::optional<TimecodeRate> timecode_rate = std::nullopt, TakeSound* sound = nullptr);
   ~TakeRecorder() override;
   TakeRecorder(const TakeRecorder&) = delete;
   TakeRecorder& operator=(const TakeRecorder&) = delete;
@@ -74,6 +76,7 @@ class TakeRecorder : public ResultSink {
   std::string source_;
   std::chrono::milliseconds flush_interval_;
   std::optional<TimecodeRate> timecode_rate_;
+  TakeSound* sound_;
 
   std::array<FrameResult, kRingSize> ring_{};
   std::atomic<std::uint64_t> head_{0}, tail_{0};  // written by push() / the recorder thread
@@ -91,7 +94,8 @@ class TakeRecorder : public ResultSink {
   std::filesystem::path file_;
   std::chrono::steady_clock::time_point last_sync_;
   fmt::memory_buffer lines_;
-  bool header_pending_ = false;  // the header waits for the take's first row (its timecode)
+  bool header_pending_ = false;      // the header waits for the take's first row (its timecode)
+  bool sound_zero_pending_ = false;  // the sound waits for the take's first row (its capture time)
 
   std::thread thread_;
 };

@@ -6,11 +6,15 @@
 
 namespace lipdrive {
 
-VoiceRoom::VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model)
+VoiceRoom::VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model, TakeSound* sound)
     : features_(model.features),
       predictor_(model),
       frames_(static_cast<std::size_t>(kMaxAudioBlockFrames / model.features.hop + 1)),
-      listener_(std::move(input), "lipdrive-voice", [this](const AudioBlock& block) { hear(block); }) {}
+      sound_(sound),
+      listener_(std::move(input), "lipdrive-voice", [this](const AudioBlock& block) {
+        hear(block);
+        if (sound_) sound_->push(block);
+      }) {}
 
 void VoiceRoom::hear(const AudioBlock& block) {
   const AudioFeatureSettings& f = features_.settings();

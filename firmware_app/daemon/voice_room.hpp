@@ -15,6 +15,7 @@
 #include "drivers/audio_source.hpp"
 #include "firmware_app/daemon/audio_listener.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
+#include "firmware_app/daemon/take_sound.hpp"
 
 #include <array>
 #include <chrono>
@@ -35,9 +36,10 @@ struct VoiceState {
 
 class VoiceRoom {
  public:
-  /// Takes the input; starts hearing it. Throws std::invalid_argument when the model cannot be
+  /// Takes the input; starts hearing it, and passing every block to `sound` when given (takes'
+  /// sound; it must outlive the room). Throws std::invalid_argument when the model cannot be
   /// run (core/voice_model.hpp), std::runtime_error when aubio cannot make its objects.
-  VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model);
+  VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model, TakeSound* sound = nullptr);
   VoiceRoom(const VoiceRoom&) = delete;
   VoiceRoom& operator=(const VoiceRoom&) = delete;
 
@@ -58,6 +60,7 @@ class VoiceRoom {
   VoicePredictor predictor_;          // the listener's thread's
   std::vector<FeatureFrame> frames_;  // the listener's thread's: the feature frames of one block
   Published<VoiceState> state_;
+  TakeSound* sound_;        // the listener's thread pushes into it
   AudioListener listener_;  // last: its thread uses the members above
 };
 

@@ -2,12 +2,15 @@
 
 #include "drivers/audio_file.hpp"
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/tables/csv_table.hpp"
 #include "firmware_app/tables/grid_align.hpp"
 #include "sim/simulated_camera.hpp"
 
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <set>
 #include <string>
 
@@ -54,7 +57,8 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
                        kExitDataError);
   processor.forget();
   Frame frame;
-  for (GrabStatus status; (status = camera->grab(frame, std::chrono::milliseconds(1000))) != GrabStatus::kEndOfStream;) {
+  for (GrabStatus status;
+       (status = camera->grab(frame, std::chrono::milliseconds(1000))) != GrabStatus::kEndOfStream;) {
     if (status != GrabStatus::kFrame) continue;
     const FrameMeasurement& m = processor.process(frame.gray);
     VoiceTargetFrame target;
@@ -76,13 +80,43 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
   return recording;
 }
 
+/// A take's rows as targets on its sound's timeline: the sound's first sample was captured at
+/// the first row's capture_time_ns.
+VoiceRecording load_take(const fs::path& take, int sample_rate) {
+  const fs::path wav = fs::path(take).replace_extension(".wav");
+  require_file(wav, "take sound (takes record their sound when the daemon has a [voice] input)");
+  const CsvTable table = read_csv_table(take);
+  const std::vector<double> time_ns = numeric_column(table, "capture_time_ns");
+  const std::vector<double> tracked = numeric_column(table, "tracked");
+  const std::array<std::vector<double>, kNumVoiceTargets> columns = {
+      numeric_column(table, "open"), numeric_column(table, "width_fit"), numeric_column(table, "protrusion_3d"),
+      numeric_column(table, "seal")};
+  VoiceRecording recording;
+  recording.name = take.string();
+  recording.samples = sound_of(wav, sample_rate).samples;
+  recording.sample_rate = sample_rate;
+  for (std::size_t i = 0; i < time_ns.size(); ++i) {
+    VoiceTargetFrame target;
+    target.time_s = (time_ns[i] - time_ns[0]) * 1e-9;
+    target.tracked = tracked[i] == 1;
+    for (int k = 0; k < kNumVoiceTargets; ++k) {
+      target.values[static_cast<std::size_t>(k)] = static_cast<float>(columns[static_cast<std::size_t>(k)][i]);
+      target.tracked = target.tracked && std::isfinite(columns[static_cast<std::size_t>(k)][i]);
+    }
+    recording.targets.push_back(target);
+  }
+  return recording;
+}
+
 }  // namespace
 
 VoiceRecording load_voice_recording(const fs::path& input, int sample_rate, FrameProcessor& processor) {
-  require_file(input, "clip");
-  VoiceRecording recording = load_clip(input, sample_rate, processor);
+  require_file(input, "clip or take");
+  VoiceRecording recording =
+      input.extension() == ".csv" ? load_take(input, sample_rate) : load_clip(input, sample_rate, processor);
   const bool any_tracked = std::ranges::any_of(recording.targets, [](const VoiceTargetFrame& t) { return t.tracked; });
-  if (!any_tracked) throw CommandError(fmt::format("{}: no tracked frame to learn from", input.string()), kExitDataError);
+  if (!any_tracked)
+    throw CommandError(fmt::format("{}: no tracked frame to learn from", input.string()), kExitDataError);
   return recording;
 }
 

@@ -1,0 +1,73 @@
+#include "firmware_app/daemon/take_sound.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <span>
+
+namespace lipdrive {
+
+void TakeSound::push(const AudioBlock& block) {
+  const std::uint64_t head = head_.load(std::memory_order_relaxed);
+  if (head - tail_.load(std::memory_order_acquire) >= kRingSize) {
+    blocks_lost_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  ring_[head % kRingSize] = block;
+  head_.store(head + 1, std::memory_order_release);
+}
+
+void TakeSound::open(const std::filesystem::path& file) {
+  close();
+  zero_ns_.reset();
+  tail_.store(head_.load(std::memory_order_acquire), std::memory_order_release);  // older sound is not the take's
+  blocks_lost_.store(0, std::memory_order_relaxed);
+  try {
+    file_.emplace(file, sample_rate_);
+  } catch (const AudioSourceError& e) {
+    spdlog::error("{}; the take is recorded without its sound", e.what());
+  }
+}
+
+void TakeSound::drain() {
+  const std::uint64_t head = head_.load(std::memory_order_acquire);
+  std::uint64_t tail = tail_.load(std::memory_order_relaxed);
+  if (file_ && !zero_ns_) return;  // the blocks wait for the take's first row
+  for (; file_ && tail != head; ++tail) write(ring_[tail % kRingSize]);
+  tail_.store(head, std::memory_order_release);
+}
+
+void TakeSound::write(const AudioBlock& block) {
+  // Where the block's first sample lies in the file. A block a few samples early or late of
+  // where the last one ended (clock jitter) continues it; a later one leaves a gap of silence;
+  // sound from before the file's end (or its start) is cut.
+  const auto start = static_cast<std::int64_t>(
+      std::llround(static_cast<double>(block.capture_time_ns - *zero_ns_) * block.sample_rate * 1e-9));
+  const std::int64_t written = file_->samples(), slack = block.sample_rate / 500;  // 2 ms
+  const std::int64_t skip = start < written - slack ? written - start : 0;
+  if (skip >= block.frames) return;
+  try {
+    if (start > written + slack) file_->write_silence(start - written);
+    file_->write(std::span(block.samples.data() + skip, static_cast<std::size_t>(block.frames - skip)));
+  } catch (const AudioSourceError& e) {
+    spdlog::error("{}; the rest of the take is recorded without its sound", e.what());
+    file_.reset();
+  }
+}
+
+void TakeSound::close() {
+  if (!file_) return;
+  drain();
+  if (!file_) return;
+  try {
+    file_->close();
+  } catch (const AudioSourceError& e) {
+    spdlog::error("{}", e.what());
+  }
+  file_.reset();
+  if (const std::uint64_t lost = blocks_lost_.exchange(0); lost > 0)
+    spdlog::warn("take sound: {} blocks were lost because the recorder could not keep up", lost);
+}
+
+}  // namespace lipdrive

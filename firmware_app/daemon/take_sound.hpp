@@ -1,0 +1,60 @@
+// A take's sound (docs/voice.md "Training on takes"): the voice input's blocks, heard on the
+// voice room's listener thread, written beside the take's CSV as a WAV file of the same name
+// by the take recorder's thread. The file's first sample was captured at the capture_time_ns
+// of the take's first row, so rows and sound share one timeline: sample k at that time plus
+// k / rate. Lost blocks and a sound that starts late are filled with silence; what came before
+// the first row is cut.
+//
+// Thread model: push() is called by one thread, the audio listener's: it never blocks and never
+// allocates (a full ring drops the block, counted). Every other call is made by the take
+// recorder's thread. The Daemon declares the TakeSound before the voice room and the recorder,
+// so both threads are joined before it goes.
+#pragma once
+
+#include "drivers/audio_file.hpp"
+#include "drivers/audio_source.hpp"
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+
+namespace lipdrive {
+
+class TakeSound {
+ public:
+  explicit TakeSound(int sample_rate) : sample_rate_(sample_rate) {}
+  TakeSound(const TakeSound&) = delete;
+  TakeSound& operator=(const TakeSound&) = delete;
+
+  /// Listener thread: queues a block.
+  void push(const AudioBlock& block);
+
+  /// Recorder thread: begins the sound of a take in `file` (replaced if it exists). A file that
+  /// cannot be created is logged; the take goes on without sound.
+  void open(const std::filesystem::path& file);
+  /// Recorder thread: the capture time of the take's first row, the file's time zero. Blocks
+  /// wait in the ring until it is known.
+  void start_at(std::int64_t first_row_ns) { zero_ns_ = first_row_ns; }
+  /// Recorder thread: writes the blocks queued so far (without an open take, drops them).
+  void drain();
+  /// Recorder thread: writes what is queued and closes the file.
+  void close();
+
+ private:
+  static constexpr std::size_t kRingSize = 256;  // 2.5 s of the voice room's 10 ms blocks
+
+  void write(const AudioBlock& block);
+
+  int sample_rate_;
+  std::array<AudioBlock, kRingSize> ring_{};
+  std::atomic<std::uint64_t> head_{0}, tail_{0};  // written by push() / the recorder thread
+  std::atomic<std::uint64_t> blocks_lost_{0};     // ring full; reported when the take closes
+
+  // Recorder thread's.
+  std::optional<WavWriter> file_;
+  std::optional<std::int64_t> zero_ns_;
+};
+
+}  // namespace lipdrive
