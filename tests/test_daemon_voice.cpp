@@ -125,8 +125,10 @@ TEST(DaemonVoice, TheVoiceDrivesWhileTheCameraIsAwayThenTheFailSafe) {
   // The replay's start on the monotonic clock: each take row's capture time less its place in
   // the clip (the earliest: a frame is captured once it is due).
   std::vector<fs::path> files;
-  for (const auto& entry : fs::directory_iterator(takes)) files.push_back(entry.path());
+  for (const auto& entry : fs::directory_iterator(takes))
+    if (entry.path().extension() == ".csv") files.push_back(entry.path());
   ASSERT_EQ(files.size(), 1u) << daemon.log();
+  EXPECT_TRUE(fs::exists(fs::path(files.front()).replace_extension(".wav"))) << "the take's sound beside it";
   const CsvTable take = read_csv_table(files.front());
   const std::vector<double> time_s = numeric_column(take, "time_s"), capture = numeric_column(take, "capture_time_ns"),
                             tracked = numeric_column(take, "tracked");
