@@ -178,12 +178,14 @@ class RecordingOutput : public Output {
     ++count;
     untracked += !(frame.status & kStatusTracking);
     opened = std::max(opened.load(), frame.values[0]);
+    status = frame.status;
     last = frame;
   }
   std::string describe() const override { return "test output"; }
   std::atomic<int> count{0}, untracked{0};
   std::atomic<double> opened{0};
-  DriveFrame last;
+  std::atomic<std::uint16_t> status{0};  // the last frame's, for the test thread while the pipeline runs
+  DriveFrame last;                       // read once the pipeline has stopped
 };
 
 void wait_for(const std::function<bool()>& condition, std::chrono::seconds limit) {
@@ -428,13 +430,13 @@ TEST_F(PipelineTest, ACalibrateRequestRecentresTheProfileOnTheProcessingThread) 
   wait_for([&] { return pipeline.stats().tracked >= 5; }, 60s);
   PerformerProfile after;
   EXPECT_EQ(pipeline.recentred_profile(after), 0u) << "nothing re-centred before a request";
-  EXPECT_FALSE(output.last.status & kStatusCalibrated);
+  EXPECT_FALSE(output.status & kStatusCalibrated);
 
   const std::uint64_t tracked_at_request = pipeline.stats().tracked;
   pipeline.control().calibrate_requests.fetch_add(1);
   wait_for([&] { return pipeline.recentred_profile(after) > 0; }, 60s);
   const std::uint64_t tracked_at_recentre = pipeline.stats().tracked;
-  wait_for([&] { return (output.last.status & kStatusCalibrated) != 0; }, 5s);
+  wait_for([&] { return (output.status & kStatusCalibrated) != 0; }, 5s);
   pipeline.stop();
 
   ASSERT_EQ(pipeline.recentred_profile(after), 1u) << "one request, one re-centred profile";

@@ -210,13 +210,20 @@ TEST(TakeSound, TheDaemonsTakeCarriesItsSoundAndTrainsAVoice) {
   const fs::path wav = fs::path(take).replace_extension(".wav");
   ASSERT_TRUE(fs::exists(wav));
 
-  // The file's sample k is the clip's sound at the first row's media time + k / rate.
+  // The file's sample k was captured at the first row's capture time + k / rate. The replay's
+  // start on the monotonic clock: each row's capture time less its place in the clip, the
+  // earliest (a frame is captured once it is due, later when the machine is busy); the clip's
+  // sound plays on that timeline.
   const CsvTable rows = read_csv_table(take);
   const std::vector<double> media = numeric_column(rows, "time_s"), captured = numeric_column(rows, "capture_time_ns");
+  double replay_start_ns = INFINITY;
+  for (std::size_t r = 0; r < media.size(); ++r)
+    replay_start_ns = std::min(replay_start_ns, captured[r] - media[r] * 1e9);
   const DecodedAudio recorded = decode_audio(wav, kRate), original = decode_audio(clip, kRate);
   const double take_s = (captured.back() - captured.front()) * 1e-9;
   EXPECT_NEAR(recorded.samples.size() / static_cast<double>(kRate), take_s, 0.1) << "sound as long as the rows";
-  const auto expected = static_cast<std::int64_t>(std::llround((media.front() - original.start_s) * kRate));
+  const double first_row_media_s = (captured.front() - replay_start_ns) * 1e-9;
+  const auto expected = static_cast<std::int64_t>(std::llround((first_row_media_s - original.start_s) * kRate));
   constexpr std::int64_t kWindow = kRate, kSearch = kRate / 8;  // 1 s compared, lags within 125 ms
   ASSERT_GE(static_cast<std::int64_t>(recorded.samples.size()), kWindow);
   std::int64_t best_lag = 0;
