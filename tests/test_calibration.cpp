@@ -165,6 +165,13 @@ TEST_F(ProfileFile, AMalformedIdentityIsAnErrorNamingTheKey) {
   EXPECT_THAT(load_error(std::string(kVersionOneProfile) + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5]\n"),
               HasSubstr("key identity: needs version 2"));
   EXPECT_THAT(load_error(std::string(kVersionOneProfile).replace(0, 11, "version = 3")), HasSubstr("key version"));
+  // Numbers that are not integers are refused, not converted (fuzz_profile: converting
+  // 8.3677e92 to an integer was undefined behaviour).
+  EXPECT_THAT(load_error(std::string(kVersionOneProfile).replace(0, 11, "version = 83677e88")),
+              HasSubstr("key version"));
+  EXPECT_THAT(load_error(std::string(kVersionOneProfile).replace(0, 11, "version = 1.5")), HasSubstr("key version"));
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 1e300\nalpha = [0.5]\n"),
+              HasSubstr("key identity.model_fingerprint"));
 }
 
 }  // namespace

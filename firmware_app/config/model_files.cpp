@@ -96,7 +96,6 @@ void save_voice_model_file(const std::filesystem::path& path, const VoiceModel& 
   replace_file(path, serialize_voice_model(model));
 }
 
-
 Mesh read_obj(const std::filesystem::path& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
@@ -173,7 +172,7 @@ std::array<std::int32_t, kNumLandmarks> read_landmark_map(const std::filesystem:
     const auto index = parse_index(key.str());
     if (!index) fail(name, "unknown key (expected an iBUG landmark index 0..67)");
     if (*index < 0 || *index >= kNumLandmarks) fail(name, "landmark index outside 0..67");
-    const auto vertex = node.value<std::int64_t>();
+    const auto vertex = node.value_exact<std::int64_t>();
     if (!node.is_integer() || !vertex) fail(name, "vertex is not an integer");
     if (*vertex < 0) fail(name, fmt::format("negative vertex index {}", *vertex));
     if (*vertex > std::numeric_limits<std::int32_t>::max()) fail(name, "vertex index too large");

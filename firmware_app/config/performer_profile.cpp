@@ -9,8 +9,8 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 
 namespace lipdrive {
@@ -40,13 +40,14 @@ toml::table range_table(const MeasureRange& range) { return toml::table{{"min", 
 
 PerformerIdentity read_identity(const toml::table& table, const fs::path& file) {
   PerformerIdentity identity;
-  const auto fingerprint = table["model_fingerprint"].value<std::int64_t>();
+  const auto fingerprint = table["model_fingerprint"].value_exact<std::int64_t>();
   if (!fingerprint || *fingerprint < 0 || *fingerprint > std::numeric_limits<std::uint32_t>::max())
     malformed(file, "identity.model_fingerprint", "missing or not a 32-bit unsigned integer");
   identity.model_fingerprint = static_cast<std::uint32_t>(*fingerprint);
   const toml::array* alpha = table["alpha"].as_array();
   if (!alpha || alpha->empty() || alpha->size() > identity.alpha.size())
-    malformed(file, "identity.alpha", fmt::format("missing, or not an array of 1 to {} numbers", identity.alpha.size()));
+    malformed(file, "identity.alpha",
+              fmt::format("missing, or not an array of 1 to {} numbers", identity.alpha.size()));
   for (std::size_t i = 0; i < alpha->size(); ++i) {
     const auto value = (*alpha)[i].value<double>();
     if (!value || !std::isfinite(*value)) malformed(file, fmt::format("identity.alpha[{}]", i), "not a finite number");
@@ -83,7 +84,7 @@ PerformerProfile load_profile(const fs::path& file) {
   } catch (const toml::parse_error& e) {
     throw CommandError(fmt::format("{}: not a performer profile: {}", file.string(), e.description()), kExitDataError);
   }
-  const auto version = root["version"].value<int>();
+  const auto version = root["version"].value_exact<std::int64_t>();  // an integer, never a converted float
   if (!version || *version < 1 || *version > kProfileVersion)
     malformed(file, "version", fmt::format("must be 1 to {}", kProfileVersion));
   PerformerProfile profile;
