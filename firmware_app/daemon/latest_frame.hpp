@@ -127,4 +127,44 @@ class Published {
   std::array<std::atomic<std::uint64_t>, kWords> words_{};
 };
 
+/// A fixed ring from one producer thread to one consumer thread (the take recorder's rows and
+/// its sound): push() never blocks or allocates, and a full ring drops the item and counts it;
+/// the consumer takes what is queued, oldest first.
+template <class T, std::size_t N>
+class SingleProducerRing {
+ public:
+  /// Producer: queues a copy of `item`; false (counted in take_dropped()) when the ring is full.
+  bool push(const T& item) {
+    const std::uint64_t head = head_.load(std::memory_order_relaxed);
+    if (head - tail_.load(std::memory_order_acquire) >= N) {
+      dropped_.fetch_add(1, std::memory_order_relaxed);
+      return false;
+    }
+    slots_[head % N] = item;
+    head_.store(head + 1, std::memory_order_release);
+    return true;
+  }
+  /// Consumer: the oldest queued item, or nullptr.
+  const T* front() const {
+    const std::uint64_t tail = tail_.load(std::memory_order_relaxed);
+    return tail == head_.load(std::memory_order_acquire) ? nullptr : &slots_[tail % N];
+  }
+  /// Consumer: `take(item)` for every queued item, oldest first; then they are gone.
+  template <class Take>
+  void consume(Take take) {
+    const std::uint64_t head = head_.load(std::memory_order_acquire);
+    for (std::uint64_t tail = tail_.load(std::memory_order_relaxed); tail != head; ++tail) take(slots_[tail % N]);
+    tail_.store(head, std::memory_order_release);
+  }
+  /// Consumer: drops what is queued.
+  void clear() { tail_.store(head_.load(std::memory_order_acquire), std::memory_order_release); }
+  /// Items the ring dropped since the last call.
+  std::uint64_t take_dropped() { return dropped_.exchange(0, std::memory_order_relaxed); }
+
+ private:
+  std::array<T, N> slots_{};
+  std::atomic<std::uint64_t> head_{0}, tail_{0};  // written by push() / the consumer
+  std::atomic<std::uint64_t> dropped_{0};
+};
+
 }  // namespace lipdrive

@@ -69,13 +69,7 @@ std::optional<std::string> TakeRecorder::error() const {
 
 void TakeRecorder::push(const FrameResult& result) {
   if (!active_.load(std::memory_order_acquire)) return;
-  const std::uint64_t head = head_.load(std::memory_order_relaxed);
-  if (head - tail_.load(std::memory_order_acquire) >= kRingSize) {
-    rows_lost_.fetch_add(1, std::memory_order_relaxed);
-    return;
-  }
-  ring_[head % kRingSize] = result;
-  head_.store(head + 1, std::memory_order_release);
+  ring_.push(result);
 }
 
 void TakeRecorder::run() {
@@ -149,7 +143,7 @@ void TakeRecorder::close_take() {
   ::fdatasync(fd_.get());
   fd_.reset();
   if (sound_) sound_->close();
-  const std::uint64_t lost = rows_lost_.exchange(0);
+  const std::uint64_t lost = ring_.take_dropped();
   if (lost > 0)
     spdlog::warn("{}: take closed; {} rows were lost because the storage could not keep up", file_.string(), lost);
   else
@@ -157,17 +151,17 @@ void TakeRecorder::close_take() {
 }
 
 void TakeRecorder::drain() {
-  const std::uint64_t head = head_.load(std::memory_order_acquire);
-  std::uint64_t tail = tail_.load(std::memory_order_relaxed);
-  if (head == tail) return;
+  const FrameResult* first = ring_.front();
+  if (first == nullptr) return;
   lines_.clear();
-  if (fd_.valid() && header_pending_) append_header(&ring_[tail % kRingSize]);
+  if (fd_.valid() && header_pending_) append_header(first);
   if (fd_.valid() && sound_ && sound_zero_pending_) {
-    sound_->start_at(ring_[tail % kRingSize].capture_time_ns);
+    sound_->start_at(first->capture_time_ns);
     sound_zero_pending_ = false;
   }
-  for (; fd_.valid() && tail != head; ++tail) {
-    const FrameResult& r = ring_[tail % kRingSize];
+  // Without an open take the rows are discarded.
+  ring_.consume([&](const FrameResult& r) {
+    if (!fd_.valid()) return;
     append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr, r.visemes,
                             r.signals.arkit(), nullptr);
     fmt::format_to(std::back_inserter(lines_), ",{},{}", drive_source_name(r.drive), r.capture_time_ns);
@@ -176,9 +170,7 @@ void TakeRecorder::drain() {
       if (r.timecode >= 0) append_timecode(lines_, r.timecode, *timecode_rate_);
     }
     lines_.push_back('\n');
-  }
-  // Without an open take the rows are discarded.
-  tail_.store(head, std::memory_order_release);
+  });
   if (fd_.valid()) write_all(lines_.data(), lines_.size());
 }
 

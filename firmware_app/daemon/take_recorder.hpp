@@ -78,10 +78,8 @@ class TakeRecorder : public ResultSink {
   std::optional<TimecodeRate> timecode_rate_;
   TakeSound* sound_;
 
-  std::array<FrameResult, kRingSize> ring_{};
-  std::atomic<std::uint64_t> head_{0}, tail_{0};  // written by push() / the recorder thread
+  SingleProducerRing<FrameResult, kRingSize> ring_;  // full: rows lost, reported when the take closes
   std::atomic<bool> active_{false};
-  std::atomic<std::uint64_t> rows_lost_{0};  // ring full; reported when the take closes
 
   mutable std::mutex mutex_;  // control requests and error, between the caller and the recorder thread
   std::optional<std::filesystem::path> start_request_;

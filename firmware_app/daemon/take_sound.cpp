@@ -8,21 +8,13 @@
 
 namespace lipdrive {
 
-void TakeSound::push(const AudioBlock& block) {
-  const std::uint64_t head = head_.load(std::memory_order_relaxed);
-  if (head - tail_.load(std::memory_order_acquire) >= kRingSize) {
-    blocks_lost_.fetch_add(1, std::memory_order_relaxed);
-    return;
-  }
-  ring_[head % kRingSize] = block;
-  head_.store(head + 1, std::memory_order_release);
-}
+void TakeSound::push(const AudioBlock& block) { ring_.push(block); }
 
 void TakeSound::open(const std::filesystem::path& file) {
   close();
   zero_ns_.reset();
-  tail_.store(head_.load(std::memory_order_acquire), std::memory_order_release);  // older sound is not the take's
-  blocks_lost_.store(0, std::memory_order_relaxed);
+  ring_.clear();  // older sound is not the take's
+  ring_.take_dropped();
   try {
     file_.emplace(file, sample_rate_);
   } catch (const AudioSourceError& e) {
@@ -31,11 +23,10 @@ void TakeSound::open(const std::filesystem::path& file) {
 }
 
 void TakeSound::drain() {
-  const std::uint64_t head = head_.load(std::memory_order_acquire);
-  std::uint64_t tail = tail_.load(std::memory_order_relaxed);
   if (file_ && !zero_ns_) return;  // the blocks wait for the take's first row
-  for (; file_ && tail != head; ++tail) write(ring_[tail % kRingSize]);
-  tail_.store(head, std::memory_order_release);
+  ring_.consume([&](const AudioBlock& block) {
+    if (file_) write(block);  // without an open take (or after a write error) dropped
+  });
 }
 
 void TakeSound::write(const AudioBlock& block) {
@@ -66,7 +57,7 @@ void TakeSound::close() {
     spdlog::error("{}", e.what());
   }
   file_.reset();
-  if (const std::uint64_t lost = blocks_lost_.exchange(0); lost > 0)
+  if (const std::uint64_t lost = ring_.take_dropped(); lost > 0)
     spdlog::warn("take sound: {} blocks were lost because the recorder could not keep up", lost);
 }
 

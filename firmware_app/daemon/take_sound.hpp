@@ -13,9 +13,8 @@
 
 #include "drivers/audio_file.hpp"
 #include "drivers/audio_source.hpp"
+#include "firmware_app/daemon/latest_frame.hpp"
 
-#include <array>
-#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -48,9 +47,7 @@ class TakeSound {
   void write(const AudioBlock& block);
 
   int sample_rate_;
-  std::array<AudioBlock, kRingSize> ring_{};
-  std::atomic<std::uint64_t> head_{0}, tail_{0};  // written by push() / the recorder thread
-  std::atomic<std::uint64_t> blocks_lost_{0};     // ring full; reported when the take closes
+  SingleProducerRing<AudioBlock, kRingSize> ring_;  // full: blocks lost, reported when the take closes
 
   // Recorder thread's.
   std::optional<WavWriter> file_;
