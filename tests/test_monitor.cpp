@@ -297,6 +297,13 @@ TEST(MonitorHttp, ServesThePageTheStateThePreviewAndTheHistoryOnLoopback) {
   EXPECT_THAT(page->get_header_value("Content-Type"), HasSubstr("text/html"));
   EXPECT_THAT(page->body, HasSubstr("<title>lipdrive monitor</title>"));
   EXPECT_THAT(page->body, HasSubstr("/api/state"));
+  // Answers go out as they are, not compressed per request for a client that would accept it.
+  for (const char* path : {"/", "/api/state", "/api/history"}) {
+    const httplib::Result r = c.Get(path, {{"Accept-Encoding", "br, gzip, deflate"}});
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 200);
+    EXPECT_FALSE(r->has_header("Content-Encoding")) << path << ": " << r->get_header_value("Content-Encoding");
+  }
 
   ASSERT_TRUE(wait_for([&] { return state(c)["frames"]["tracked"].get<int>() > 30; }, 60s)) << daemon.process.log();
   const json first = fresh_state(c);
@@ -311,6 +318,7 @@ TEST(MonitorHttp, ServesThePageTheStateThePreviewAndTheHistoryOnLoopback) {
   ASSERT_EQ(second["outputs"].size(), 0u);
   EXPECT_THAT(second["camera"].get<std::string>(), HasSubstr("talking_face.avi"));
   EXPECT_TRUE(second["side_camera"].is_null());
+  EXPECT_EQ(second["monitor"]["previews"], 0) << "nobody asked for a preview: none is drawn or encoded";
   EXPECT_EQ(c.Get("/preview-side.jpg")->status, 404) << "no side camera, no side image";
 
   // The preview: a JPEG of the frame with its overlay, newer on every fetch.
@@ -343,6 +351,12 @@ TEST(MonitorHttp, ServesThePageTheStateThePreviewAndTheHistoryOnLoopback) {
   }
   EXPECT_GT(magenta, 50);
   EXPECT_GT(green, 68);
+  // Once nobody asks for previews (2 s), the encoder rests.
+  std::this_thread::sleep_for(3s);
+  const json resting = fresh_state(c);
+  EXPECT_GT(resting["monitor"]["previews"].get<int>(), 0);
+  std::this_thread::sleep_for(1s);
+  EXPECT_EQ(fresh_state(c)["monitor"]["previews"], resting["monitor"]["previews"]);
 
   // The history: 25 samples a second per channel, and "since" returns only newer ones.
   const json history = get_json(c, "/api/history");

@@ -21,6 +21,7 @@
 #include <deque>
 #include <functional>
 #include <random>
+#include <string_view>
 
 namespace lipdrive {
 namespace {
@@ -29,6 +30,10 @@ constexpr std::int64_t kSamplePeriodNs = 40'000'000;  // the history: 25 samples
 constexpr int kHistorySamples = 256;                  // 10.24 s of them
 constexpr std::int64_t kStateMaxAgeNs = 50'000'000;   // state rebuilt at most 20 times a second
 constexpr int kJpegQuality = 75;
+// Previews are drawn and encoded while one was asked for within this time; the first request
+// after a pause waits at most kFreshPreviewWaitNs for a fresh one.
+constexpr std::int64_t kPreviewInterestNs = 2'000'000'000;
+constexpr std::chrono::milliseconds kFreshPreviewWait(1000);
 // A client that stalls holds a worker at most this long per read or write; stop() waits for
 // the reads in hand.
 constexpr time_t kIoTimeoutS = 1;
@@ -87,6 +92,25 @@ class WorkerPool final : public httplib::TaskQueue {
   std::vector<std::thread> threads_;
 };
 
+/// Answers with `bytes` as they are. A body set with set_content httplib copies, and a text or
+/// JSON one it compresses again for every request whose client accepts it (Brotli for a browser
+/// or an httplib client: a quarter of the workers' CPU time with 50 clients polling the state); a
+/// body of known length from a provider goes out uncompressed, straight from `bytes`, which
+/// `owner` keeps alive until it is sent.
+void send_as_is(httplib::Response& response, std::string_view bytes, const char* content_type,
+                std::shared_ptr<const void> owner = nullptr) {
+  response.set_content_provider(
+      bytes.size(), content_type,
+      [bytes, owner = std::move(owner)](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+        return sink.write(bytes.data() + offset, length);
+      });
+}
+
+void send_as_is(httplib::Response& response, std::shared_ptr<const std::string> bytes, const char* content_type) {
+  const std::string_view view = *bytes;
+  send_as_is(response, view, content_type, std::move(bytes));
+}
+
 /// Compares in time independent of where the strings differ.
 bool same_token(std::string_view a, std::string_view b) {
   if (a.size() != b.size()) return false;
@@ -119,6 +143,7 @@ Monitor::Monitor(Config::Monitor settings, MonitorSources sources, std::string t
       token_(std::move(token)),
       start_ns_(monotonic_ns()),
       history_(std::make_unique<History>()),
+      preview_asked_ns_(start_ns_ - kPreviewInterestNs - 1),  // nobody yet
       server_(std::make_unique<httplib::Server>()) {
   const int workers = settings_.max_clients;
   server_->new_task_queue = [workers] { return new WorkerPool(workers); };
@@ -180,6 +205,10 @@ bool Monitor::start() {
 
 void Monitor::stop() {
   stop_ = true;
+  for (Jpeg* jpeg : {&front_jpeg_, &side_jpeg_}) {
+    std::lock_guard lock(jpeg->mutex);  // a worker waiting for a preview sees stop_ before it sleeps again
+    jpeg->published.notify_all();
+  }
   server_->stop();
   if (listener_.joinable()) listener_.join();
   if (encoder_.joinable()) encoder_.join();
@@ -204,11 +233,11 @@ void Monitor::add_routes() {
   });
   server_->Get("/", [](const Request&, Response& response) {
     response.set_header("Cache-Control", "no-store");
-    response.set_content(kMonitorPage.data(), kMonitorPage.size(), "text/html; charset=utf-8");
+    send_as_is(response, kMonitorPage, "text/html; charset=utf-8");
   });
   server_->Get("/api/state", [this](const Request&, Response& response) {
     response.set_header("Cache-Control", "no-store");
-    response.set_content(state_json(), "application/json");
+    send_as_is(response, state_json(), "application/json");
   });
   server_->Get("/api/history", [this](const Request& request, Response& response) {
     std::uint64_t since = 0;
@@ -222,14 +251,19 @@ void Monitor::add_routes() {
       }
     }
     response.set_header("Cache-Control", "no-store");
-    response.set_content(history_json(since), "application/json");
+    send_as_is(response, std::make_shared<const std::string>(history_json(since)), "application/json");
   });
-  const auto serve = [](Jpeg& jpeg) {
-    return [&jpeg](const Request&, Response& response) {
+  const auto serve = [this](Jpeg& jpeg) {
+    return [this, &jpeg](const Request&, Response& response) {
+      const std::int64_t asked_ns = monotonic_ns();
+      preview_asked_ns_.store(asked_ns, std::memory_order_relaxed);
       std::shared_ptr<const std::string> bytes;
       std::uint64_t sequence = 0;
       {
-        std::lock_guard lock(jpeg.mutex);
+        std::unique_lock lock(jpeg.mutex);
+        // Nobody looked for a while, so the encoder rested: wait for the preview it now makes.
+        if (asked_ns - jpeg.encoded_ns > kPreviewInterestNs)
+          jpeg.published.wait_for(lock, kFreshPreviewWait, [&] { return jpeg.encoded_ns >= asked_ns || stop_.load(); });
         bytes = jpeg.bytes;
         sequence = jpeg.sequence;
       }
@@ -241,7 +275,7 @@ void Monitor::add_routes() {
         return;
       }
       response.set_header("X-Frame-Sequence", std::to_string(sequence));
-      response.set_content(*bytes, "image/jpeg");
+      send_as_is(response, std::move(bytes), "image/jpeg");
     };
   };
   server_->Get("/preview.jpg", serve(front_jpeg_));
@@ -274,11 +308,15 @@ void Monitor::add_routes() {
 
 // ---------------------------------------------------------------- encoder thread
 
-void Monitor::Jpeg::publish(std::string jpeg, std::uint64_t frame_sequence) {
+void Monitor::Jpeg::publish(std::string jpeg, std::uint64_t frame_sequence, std::int64_t now_ns) {
   auto shared = std::make_shared<const std::string>(std::move(jpeg));
-  std::lock_guard lock(mutex);
-  bytes = std::move(shared);
-  sequence = frame_sequence;
+  {
+    std::lock_guard lock(mutex);
+    bytes = std::move(shared);
+    sequence = frame_sequence;
+    encoded_ns = now_ns;
+  }
+  published.notify_all();
 }
 
 void Monitor::encoder_loop() {
@@ -287,9 +325,11 @@ void Monitor::encoder_loop() {
   std::int64_t next_sample_ns = monotonic_ns();
   while (!stop_.load(std::memory_order_relaxed)) {
     const std::int64_t wait_ns = std::max<std::int64_t>(next_sample_ns - monotonic_ns(), 0);
-    if (const PreviewFrame* frame = sources_.preview.take(std::chrono::nanoseconds(wait_ns))) {
-      front_jpeg_.publish(preview_jpeg(*frame, canvas, front), frame->sequence);
-      if (frame->side) side_jpeg_.publish(side_preview_jpeg(*frame, canvas, front), frame->sequence);
+    const PreviewFrame* frame = sources_.preview.take(std::chrono::nanoseconds(wait_ns));
+    // Taken either way, so that the next one is the newest; drawn and encoded only for a viewer.
+    if (frame && monotonic_ns() - preview_asked_ns_.load(std::memory_order_relaxed) <= kPreviewInterestNs) {
+      front_jpeg_.publish(preview_jpeg(*frame, canvas, front), frame->sequence, monotonic_ns());
+      if (frame->side) side_jpeg_.publish(side_preview_jpeg(*frame, canvas, side), frame->sequence, monotonic_ns());
       counters_.encoded.fetch_add(1, std::memory_order_relaxed);
     }
     const std::int64_t now = monotonic_ns();
@@ -336,10 +376,10 @@ std::string Monitor::history_json(std::uint64_t since) const {
       .dump();
 }
 
-std::string Monitor::state_json() {
+std::shared_ptr<const std::string> Monitor::state_json() {
   const std::int64_t now = monotonic_ns();
   std::lock_guard lock(state_mutex_);
-  if (!state_.empty() && now - state_time_ns_ < kStateMaxAgeNs) return state_;
+  if (state_ && now - state_time_ns_ < kStateMaxAgeNs) return state_;
   const Pipeline& pipeline = sources_.pipeline;
   const SideCamera* side = pipeline.side_camera();
   const PipelineStats s = pipeline.stats();
@@ -421,7 +461,7 @@ std::string Monitor::state_json() {
         {"commands", counters_.commands.load()},
         {"previews", counters_.encoded.load()}}},
   };
-  state_ = state.dump();
+  state_ = std::make_shared<const std::string>(state.dump());
   state_time_ns_ = now;
   return state_;
 }

@@ -11,8 +11,8 @@
 // Threads, all the monitor's own, none on the frame path: the listener accepts connections;
 // a fixed pool of workers answers them, one request per connection (when every worker is busy
 // and as many connections wait, the listener answers 503 itself); the encoder takes previews
-// from the PreviewFeed, draws the overlay and encodes the JPEG, and samples the drive channels
-// for the history. What they read of the pipeline they read lock-free (its seqlocks and
+// from the PreviewFeed and, while someone fetches them, draws the overlay and encodes the JPEG;
+// it also samples the drive channels for the history. What they read of the pipeline they read lock-free (its seqlocks and
 // atomics); commands go through DriveControl's atomics like every other control input.
 //
 // Lifetime: the Daemon owns it and declares it after everything it reads (pipeline, outputs,
@@ -26,6 +26,7 @@
 #include "firmware_app/outputs/output.hpp"
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -79,15 +80,18 @@ class Monitor {
   /// A preview encoded by the encoder thread for the workers to send.
   struct Jpeg {
     std::mutex mutex;
+    std::condition_variable published;
     std::shared_ptr<const std::string> bytes;  // none before the first
     std::uint64_t sequence = 0;                // the front frame's
-    void publish(std::string jpeg, std::uint64_t frame_sequence);
+    std::int64_t encoded_ns = 0;               // when it was encoded
+    void publish(std::string jpeg, std::uint64_t frame_sequence, std::int64_t now_ns);
   };
 
   void add_routes();
   void encoder_loop();
   void sample_channels();
-  std::string state_json();
+  /// The state's JSON, shared by every request until it is rebuilt (at most every kStateMaxAge).
+  std::shared_ptr<const std::string> state_json();
   std::string history_json(std::uint64_t since) const;
   /// The request's token against ours: 0 when it carries the right one, else 401 or 403.
   int authorise(const std::string& authorization_header);
@@ -102,9 +106,11 @@ class Monitor {
   mutable std::mutex history_mutex_;
 
   Jpeg front_jpeg_, side_jpeg_;  // the newest preview's images
+  // When a preview was last asked for: the encoder works only while someone looks.
+  std::atomic<std::int64_t> preview_asked_ns_;
 
   std::mutex state_mutex_;  // the state, rebuilt at most every kStateMaxAge for any number of clients
-  std::string state_;
+  std::shared_ptr<const std::string> state_;
   std::int64_t state_time_ns_ = 0;
 
   std::unique_ptr<httplib::Server> server_;
