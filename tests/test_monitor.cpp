@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <arpa/inet.h>
 #include <atomic>
 #include <chrono>
@@ -37,6 +38,8 @@
 #include <regex>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -50,6 +53,7 @@ using test::kClip;
 using test::kModel;
 
 constexpr const char* kToken = "0123456789abcdef-monitor";
+const fs::path kSideClip = fs::path(test::kFixtureDir) / "side_view.avi";  // the default head in profile
 
 bool wait_for(const std::function<bool()>& condition, std::chrono::milliseconds limit) {
   const auto deadline = std::chrono::steady_clock::now() + limit;
@@ -146,10 +150,9 @@ TEST_P(PreviewOnTheFramePath, AllocatesNothingAndTheFittedLipsLieOnTheTrackedOne
   DriveControl control;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), test::make_processor(), PipelineSettings{}, control);
   if (GetParam().side) {
-    const fs::path side_clip = fs::path(test::kFixtureDir) / "side_view.avi";
-    LIPDRIVE_REQUIRE_BUILT(side_clip);
+    LIPDRIVE_REQUIRE_BUILT(kSideClip);
     SimulatedCameraOptions side = options;
-    side.input = side_clip;
+    side.input = kSideClip;
     pipeline.set_side_camera(
         std::make_unique<SideCamera>(std::make_unique<SimulatedCamera>(side), SideProfileSettings{}, 10));
   }
@@ -388,12 +391,17 @@ int pixels_of(const cv::Mat& image, const cv::Vec3b& colour) {
   return n;
 }
 
+/// A simulated side camera replaying the side-view clip (the default head in profile) at 60 fps.
+std::string side_camera_table() {
+  return fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"\nreplay_fps = 60\n", kSideClip.string());
+}
+
+const cv::Vec3b kYellow{0, 220, 255}, kMagenta{255, 0, 255};  // the overlay's colours (BGR)
+
 TEST(MonitorHttp, ShowsTheSideCamerasImageWithItsProfile) {
   LIPDRIVE_REQUIRE_BUILT(kClip);
-  const fs::path side_clip = fs::path(test::kFixtureDir) / "side_view.avi";
-  LIPDRIVE_REQUIRE_BUILT(side_clip);
-  MonitoredDaemon daemon(
-      "", fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"\nreplay_fps = 60\n", side_clip.string()));
+  LIPDRIVE_REQUIRE_BUILT(kSideClip);
+  MonitoredDaemon daemon("", side_camera_table());
   ASSERT_TRUE(daemon.listening()) << daemon.process.log();
   auto c = client(daemon.port);
   ASSERT_TRUE(wait_for([&] { return state(c)["frames"]["tracked"].get<int>() > 30; }, 60s)) << daemon.process.log();
@@ -418,7 +426,7 @@ TEST(MonitorHttp, ShowsTheSideCamerasImageWithItsProfile) {
     last_sequence = sequence;
     const cv::Mat image = cv::imdecode(std::vector<unsigned char>(r->body.begin(), r->body.end()), cv::IMREAD_COLOR);
     ASSERT_EQ(image.size(), cv::Size(640, 480));
-    const int yellow = pixels_of(image, {0, 220, 255}), magenta = pixels_of(image, {255, 0, 255});
+    const int yellow = pixels_of(image, kYellow), magenta = pixels_of(image, kMagenta);
     with_profile += yellow > 20 && magenta > 10;
     if (i == 0) std::ofstream(artifacts / "side.jpg", std::ios::binary) << r->body;
     std::this_thread::sleep_for(300ms);
@@ -644,6 +652,17 @@ cv::Mat decode_png(const std::string& png) {
   return cv::imdecode(std::vector<unsigned char>(png.begin(), png.end()), cv::IMREAD_COLOR);
 }
 
+/// Two screenshots of the page a second apart, kept as NAME-1.png and NAME-2.png.
+std::pair<cv::Mat, cv::Mat> two_screenshots(test::WebDriver& browser, const std::string& name) {
+  fs::create_directories(kBrowserArtifacts);
+  const std::string first = browser.screenshot_png();
+  std::this_thread::sleep_for(1s);
+  const std::string second = browser.screenshot_png();
+  std::ofstream(kBrowserArtifacts / (name + "-1.png"), std::ios::binary) << first;
+  std::ofstream(kBrowserArtifacts / (name + "-2.png"), std::ios::binary) << second;
+  return {decode_png(first), decode_png(second)};
+}
+
 TEST(MonitorBrowser, ThePageUpdatesAndItsCalibrateButtonNeedsTheToken) {
   LIPDRIVE_REQUIRE_BUILT(kClip);
   MonitoredDaemon daemon(fmt::format("token = \"{}\"", kToken));
@@ -669,13 +688,7 @@ TEST(MonitorBrowser, ThePageUpdatesAndItsCalibrateButtonNeedsTheToken) {
   ASSERT_TRUE(
       wait_for([&] { return browser.execute("return document.getElementById('preview').naturalWidth;") == 640; }, 20s));
   std::this_thread::sleep_for(2s);
-  fs::create_directories(kBrowserArtifacts);
-  const std::string first_png = browser.screenshot_png();
-  std::this_thread::sleep_for(1s);
-  const std::string second_png = browser.screenshot_png();
-  std::ofstream(kBrowserArtifacts / "page-1.png", std::ios::binary) << first_png;
-  std::ofstream(kBrowserArtifacts / "page-2.png", std::ios::binary) << second_png;
-  const cv::Mat first = decode_png(first_png), second = decode_png(second_png);
+  const auto [first, second] = two_screenshots(browser, "page");
   ASSERT_FALSE(first.empty());
   ASSERT_EQ(first.size(), second.size());
   const json preview_box = browser.rect("#preview"), plots_box = browser.rect("#plots");
@@ -714,6 +727,115 @@ TEST(MonitorBrowser, ThePageUpdatesAndItsCalibrateButtonNeedsTheToken) {
   EXPECT_TRUE(wait_for([&] { return shown("calibrations") == "1"; }, 20s)) << daemon.process.log();
   const std::string last_png = browser.screenshot_png();
   std::ofstream(kBrowserArtifacts / "page-calibrated.png", std::ios::binary) << last_png;
+  daemon.stop();
+}
+
+/// Pixels of the overlay's colours in a screenshot of a grey camera image: the browser scales the
+/// image, so the thin lines blend with the grey below them; what stands out is their chroma.
+bool yellowish(const cv::Vec3b& p) { return p[2] - p[0] > 80 && p[1] - p[0] > 80; }
+bool magentaish(const cv::Vec3b& p) { return p[2] - p[1] > 60 && p[0] - p[1] > 60; }
+bool greenish(const cv::Vec3b& p) { return p[1] - p[2] > 60 && p[1] - p[0] > 60; }
+struct OverlayPixels {
+  int yellow = 0, magenta = 0, green = 0;
+};
+OverlayPixels overlay_pixels(const cv::Mat& image) {
+  OverlayPixels n;
+  for (auto it = image.begin<cv::Vec3b>(); it != image.end<cv::Vec3b>(); ++it) {
+    n.yellow += yellowish(*it);
+    n.magenta += magentaish(*it);
+    n.green += greenish(*it);
+  }
+  return n;
+}
+
+/// Where the side image's nose tip is drawn: the centre of the yellow pixels within 6 px of the
+/// rightmost one (the head looks right; the tip is the profile's foremost point). (-1, -1) when
+/// nothing yellow is drawn.
+cv::Point2d drawn_nose_tip(const cv::Mat& image) {
+  std::vector<cv::Point> yellow;
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x)
+      if (yellowish(image.at<cv::Vec3b>(y, x))) yellow.emplace_back(x, y);
+  if (yellow.empty()) return {-1, -1};
+  const int foremost = std::ranges::max(yellow, {}, &cv::Point::x).x;
+  cv::Point2d sum(0, 0);
+  int n = 0;
+  for (const cv::Point& p : yellow) {
+    if (p.x < foremost - 6) continue;
+    sum += cv::Point2d(p);
+    ++n;
+  }
+  return sum / n;
+}
+
+/// Pixels of the rendered face (grey) and of the background (black) within `radius` of `centre`.
+std::pair<int, int> face_and_background_near(const cv::Mat& image, const cv::Point2d& centre, int radius) {
+  int face = 0, background = 0;
+  const cv::Rect window = cv::Rect(cv::Point(static_cast<int>(centre.x) - radius, static_cast<int>(centre.y) - radius),
+                                   cv::Size(2 * radius + 1, 2 * radius + 1)) &
+                          cv::Rect(0, 0, image.cols, image.rows);
+  for (int y = window.y; y < window.br().y; ++y)
+    for (int x = window.x; x < window.br().x; ++x) {
+      const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+      const bool grey = std::abs(p[0] - p[1]) < 20 && std::abs(p[1] - p[2]) < 20;
+      face += grey && p[1] > 60;
+      background += grey && p[1] < 30;
+    }
+  return {face, background};
+}
+
+// With a side camera the page shows its image under the front camera's, both updating, each with
+// its overlay; the side image's nose tip is drawn on the profile's edge.
+TEST(MonitorBrowser, ShowsTheSideCameraBesideTheFrontAndBothUpdate) {
+  LIPDRIVE_REQUIRE_BUILT(kClip);
+  LIPDRIVE_REQUIRE_BUILT(kSideClip);
+  MonitoredDaemon daemon("", side_camera_table());
+  ASSERT_TRUE(daemon.listening()) << daemon.process.log();
+  test::WebDriver browser(daemon.dir.path(), test::free_port());
+  ASSERT_TRUE(browser.ok()) << browser.why();
+  browser.set_window_size(1280, 1400);  // both images in the viewport, one above the other
+  browser.go(fmt::format("http://127.0.0.1:{}/", daemon.port));
+  const auto natural_width = [&](const std::string& id) {
+    return browser.execute(fmt::format("return document.getElementById('{}').naturalWidth;", id));
+  };
+  ASSERT_TRUE(wait_for([&] { return natural_width("preview") == 640 && natural_width("side-preview") == 640; }, 60s))
+      << daemon.process.log();
+  EXPECT_EQ(browser.execute("return document.getElementById('side-section').hidden;"), false);
+  std::this_thread::sleep_for(1s);
+  const auto [first, second] = two_screenshots(browser, "page-side");
+  ASSERT_FALSE(first.empty());
+  ASSERT_EQ(first.size(), second.size());
+  const json front_box = browser.rect("#preview"), side_box = browser.rect("#side-preview");
+  EXPECT_GT(side_box["y"].get<double>(), front_box["y"].get<double>() + front_box["height"].get<double>());
+  ASSERT_LE(side_box["y"].get<double>() + side_box["height"].get<double>(), first.rows) << "the side image is shown";
+  EXPECT_GT(side_box["width"].get<double>(), 300);
+  EXPECT_GT(cv::norm(region(first, front_box), region(second, front_box), cv::NORM_L1), 0) << "the front image updates";
+  EXPECT_GT(cv::norm(region(first, side_box), region(second, side_box), cv::NORM_L1), 0) << "the side image updates";
+
+  for (const cv::Mat* screenshot : {&first, &second}) {
+    // The front camera's overlay: the face box in yellow, the fitted lips in magenta, the 68
+    // landmarks in green.
+    const OverlayPixels front = overlay_pixels(region(*screenshot, front_box));
+    EXPECT_GT(front.yellow, 600) << "the face box";
+    EXPECT_GT(front.magenta, 300) << "the fitted lips' two contours";
+    EXPECT_GT(front.green, 68 * 5) << "the landmarks";
+    // The side camera's: the nose in yellow, the subnasale in green, the upper lip in magenta; the
+    // nose tip on the edge between the rendered head and the background (an overlay scaled or
+    // shifted off the image would lie on one side of it).
+    const cv::Mat side_image = region(*screenshot, side_box);
+    const OverlayPixels side = overlay_pixels(side_image);
+    EXPECT_GT(side.yellow, 60) << "the nose";
+    EXPECT_GT(side.green, 10) << "the subnasale";
+    EXPECT_GT(side.magenta, 20) << "the upper lip";
+    const cv::Point2d tip = drawn_nose_tip(side_image);
+    const auto [face, background] = face_and_background_near(side_image, tip, 10);
+    EXPECT_GT(face, 60) << "nose tip drawn at " << tip;
+    EXPECT_GT(background, 60) << "nose tip drawn at " << tip;
+    std::printf("front overlay: %d yellow, %d magenta, %d green pixels; side: %d, %d, %d; side nose tip drawn at "
+                "(%.1f, %.1f), %d face and %d background pixels within 10 px\n",
+                front.yellow, front.magenta, front.green, side.yellow, side.magenta, side.green, tip.x, tip.y, face,
+                background);
+  }
   daemon.stop();
 }
 

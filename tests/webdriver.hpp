@@ -91,6 +91,10 @@ class WebDriver {
     return session_command("POST", "/execute/sync", {{"script", script}, {"args", nlohmann::json::array()}});
   }
   void click(const std::string& css) { session_command("POST", "/element/" + element(css) + "/click", {}); }
+  /// The window's outer size in CSS pixels.
+  void set_window_size(int width, int height) {
+    session_command("POST", "/window/rect", {{"width", width}, {"height", height}});
+  }
   /// The element's box in CSS pixels: x, y, width, height.
   nlohmann::json rect(const std::string& css) { return session_command("GET", "/element/" + element(css) + "/rect"); }
   /// The viewport as PNG bytes.
