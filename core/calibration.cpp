@@ -20,6 +20,12 @@ Eigen::VectorXf PerformerIdentity::vector(int model_components) const {
   return coefficients;
 }
 
+FitOutput::Expressions PerformerIdentity::rest_weights() const {
+  FitOutput::Expressions weights = FitOutput::Expressions::Zero();
+  for (int e = 0; e < std::min(expressions, kMaxFitExpressions); ++e) weights[e] = rest[static_cast<std::size_t>(e)];
+  return weights;
+}
+
 CalibrationSample calibration_sample(const MouthMeasures& measures) {
   return {measures.open, measures.width_fit, measures.protrusion_3d};
 }

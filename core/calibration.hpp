@@ -35,10 +35,17 @@ CalibrationSample calibration_sample(const MouthMeasures& measures);
 /// trivially copyable (the daemon publishes it between threads).
 struct PerformerIdentity {
   std::uint32_t model_fingerprint = 0;
-  int components = 0;                           // coefficients in use, at most kMaxFitComponents
+  int components = 0;                            // coefficients in use, at most kMaxFitComponents
   std::array<float, kMaxFitComponents> alpha{};  // in units of each component's stddev
+  /// The performer's rest point (fit_rest_expression): the fit's expression weights on the
+  /// neutral frames, in the model's order; every frame's weights leave relative to it
+  /// (above_rest). `expressions` = how many are set (0: none, the weights as fitted).
+  int expressions = 0;
+  std::array<float, kMaxFitExpressions> rest{};
   /// The coefficients as the Fitter takes them, `model_components` long (zero past `components`).
   Eigen::VectorXf vector(int model_components) const;
+  /// The rest point as above_rest takes it (zero past `expressions`).
+  FitOutput::Expressions rest_weights() const;
 };
 
 /// The ranges of one performer. The defaults, for a performer not yet calibrated, span what

@@ -1,6 +1,7 @@
 #include "core/fitting.hpp"
 
 #include "core/fit_moments.hpp"
+#include "core/statistics.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -11,6 +12,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -352,6 +354,34 @@ Eigen::VectorXf fit_identity(const MorphableModel& model, LandmarkSet set, std::
   Eigen::VectorXf identity = Eigen::VectorXf::Zero(model.num_components());
   identity.head(k) = alpha.cast<float>();
   return identity;
+}
+
+FitOutput::Expressions fit_rest_expression(const MorphableModel& model, LandmarkSet set,
+                                           std::span<const Landmarks2D> frames, const Eigen::VectorXf& identity,
+                                           FitSettings settings) {
+  if (frames.empty()) throw std::invalid_argument("fit_rest_expression: no frames");
+  const Fitter fitter(model, set, settings, identity);
+  const int n = static_cast<int>(frames.size());
+  const int passes = (kRestWarmUpFits + n - 1) / n;
+  std::vector<std::vector<double>> last_pass(static_cast<std::size_t>(model.num_expressions()));
+  FitOutput fit = Fitter::initial_output();
+  for (int pass = 0; pass < passes; ++pass)
+    for (const Landmarks2D& frame : frames) {
+      fitter.fit(frame, fit);
+      if (pass + 1 == passes)
+        for (int e = 0; e < model.num_expressions(); ++e)
+          last_pass[static_cast<std::size_t>(e)].push_back(fit.expressions[e]);
+    }
+  FitOutput::Expressions rest = FitOutput::Expressions::Zero();
+  for (int e = 0; e < model.num_expressions(); ++e) rest[e] = median(last_pass[static_cast<std::size_t>(e)]);
+  for (const char* opening : {"jawOpen", "mouthClose"})
+    if (const auto e = model.expression_index(opening)) rest[*e] = 0;
+  return rest;
+}
+
+void above_rest(const FitOutput::Expressions& w, const FitOutput::Expressions& rest, FitOutput::Expressions& out) {
+  for (int e = 0; e < kMaxFitExpressions; ++e)
+    out[e] = rest[e] < 1 ? std::clamp((w[e] - rest[e]) / (1 - rest[e]), 0.0, 1.0) : 0.0;
 }
 
 }  // namespace lipdrive

@@ -102,4 +102,24 @@ class Fitter {
 Eigen::VectorXf fit_identity(const MorphableModel& model, LandmarkSet set, std::span<const Landmarks2D> frames,
                              FitSettings settings = {});
 
+/// The performer's rest point (docs/arkit.md, "The performer's rest point"): the expression
+/// weights the fit gives the neutral frames on the performer's identity, per shape the median
+/// over the frames. What no
+/// identity explains on this face (the landmark detector's own bias, the model's landmark
+/// definitions) lands in these weights. The frames are fitted in order, warm-started, and
+/// repeated until at least kRestWarmUpFits fits have run (from the mean face the fit converges
+/// over tens of frames); the median is taken over the last pass. jawOpen and mouthClose keep a
+/// rest of 0: they are the mouth's opening, whose rest is the closed mouth (a bilabial closure
+/// presses below the relaxed neutral; subtracting their neutral weight lost the closures'
+/// part of the opening, docs/arkit.md). Allocates: calibration only.
+FitOutput::Expressions fit_rest_expression(const MorphableModel& model, LandmarkSet set,
+                                           std::span<const Landmarks2D> frames, const Eigen::VectorXf& identity,
+                                           FitSettings settings = {});
+inline constexpr int kRestWarmUpFits = 60;
+
+/// The expression weights `w` relative to the performer's rest point `rest` (fit_rest_expression):
+/// per shape (w - rest) / (1 - rest), clamped to [0, 1], so the rest reads 0 and a full shape 1.
+/// A zero rest leaves the weight as it is (mouthClose <= jawOpen holds as fitted). Allocates nothing.
+void above_rest(const FitOutput::Expressions& w, const FitOutput::Expressions& rest, FitOutput::Expressions& out);
+
 }  // namespace lipdrive

@@ -108,14 +108,14 @@ inline constexpr std::array<ArkitVisemeInput, 11> kArkitVisemeInputs{{
     {"aperture", 0.34f},
     {"mouthPucker", 0.47f},
     {"mouthFunnel", 0.5f},
-    {"mouthStretch", 0.19f},
+    {"mouthStretch", 0.17f},
     {"mouthSmile", 0.5f},
-    {"mouthLowerDown", 0.18f},
-    {"mouthUpperUp", 0.59f},
-    {"mouthRollLower", 0.31f},
-    {"mouthShrugLower", 0.47f},
+    {"mouthLowerDown", 0.16f},
+    {"mouthUpperUp", 0.58f},
+    {"mouthRollLower", 0.27f},
+    {"mouthShrugLower", 0.45f},
     {"mouthShrugUpper", 0.5f},
-    {"mouthPress", 0.43f},
+    {"mouthPress", 0.39f},
 }};
 inline constexpr int kNumArkitVisemeInputs = static_cast<int>(kArkitVisemeInputs.size());
 

@@ -16,6 +16,9 @@ and fixtures/grid) apart:
                speech words, and the share of bilabial words whose peak is above the 75th
                percentile of the clip's other speech frames
   rounding     mouthPucker and mouthFunnel the same way over "with", "two", "blue"
+  rest         each ARKit weight over the final silence (from 3 frames after the start of the
+               last 'sil' of the .align to its end, docs/method.md 5): the median per clip, then
+               the median of those over the half's clips; printed for every weight above 0.01
   seal         the lips' seal (lip contact from the pixels) the same way over the bilabial, the
                rounded and the f/v words
   visemes      the viseme weights the ICT head's ARKit weights give (core/viseme_weights.hpp,
@@ -125,6 +128,14 @@ def process_clip(clip, work, build, mean_face, log):
     return table(out)
 
 
+def final_silence(align, n):
+    """The frames of the final silence (docs/method.md 5: from 3 frames after its start to its end)."""
+    last = [line.split() for line in align.read_text().split("\n") if len(line.split()) == 3][-1]
+    if last[2] != "sil":
+        return range(0)
+    return range(int(last[0]) // 1000 + 3, min(n, (int(last[1]) - 1) // 1000 + 1))
+
+
 def word_stats(clip_words, targets, weight, versus=None):
     """Per clip: (mean over target-word frames, mean over the other speech frames (those of the
     words in `versus` when given), words whose peak is above the 75th percentile of those frames,
@@ -162,6 +173,7 @@ def main():
         for half, clips in halves.items():
             r, pooled_x, pooled_y = [], [], []
             sums = [[0.0, 0.0, 0, 0, 0, 0] for _ in SERIES]
+            rest = {}  # ARKit column -> per-clip median over the final silence
             for clip in clips:
                 c = process_clip(clip, work, args.build, args.mean_face, log)
                 tracked = [i for i, t in enumerate(c["tracked"]) if t == 1]
@@ -171,6 +183,10 @@ def main():
                 pooled_x += x
                 pooled_y += y
                 clip_words = words(clip.with_suffix(".align"))
+                silence = [f for f in final_silence(clip.with_suffix(".align"), len(c["tracked"])) if c["tracked"][f] == 1]
+                if silence:
+                    for column in (k for k in c if k.startswith("arkit_")):
+                        rest.setdefault(column, []).append(statistics.median(c[column][f] for f in silence))
                 for acc, (_, columns, targets, _, versus) in zip(sums, SERIES):
                     weight = [statistics.fmean(v) for v in zip(*(c[column] for column in columns))]
                     s = word_stats(clip_words, targets, weight, versus)
@@ -187,6 +203,10 @@ def main():
                 print(f"  {name}: mean {target / n:.3f} over {where} words vs {other / n:.3f} over {against} "
                       f"({n} clips); peak above the clip's 75th percentile on {risen}/{total} words, "
                       f"at least 0.5 on {reached}/{total}")
+            medians = {column[6:]: statistics.median(v) for column, v in rest.items()}
+            print(f"  rest (final silence, median of {len(next(iter(rest.values())))} clip medians): "
+                  f"mean over the 52 weights {statistics.fmean(medians.values()):.3f}; " +
+                  ", ".join(f"{name} {m:.3f}" for name, m in sorted(medians.items(), key=lambda x: -x[1]) if m > 0.01))
     print(f"tables and profiles in {work}")
 
 

@@ -136,6 +136,8 @@ TEST_F(ProfileFile, IdentityRoundTripsAndAVersionOneProfileStillLoads) {
   identity.model_fingerprint = 0xF00DCAFEu;
   identity.components = 20;
   for (int i = 0; i < 20; ++i) identity.alpha[static_cast<std::size_t>(i)] = 0.1f * static_cast<float>(i) - 0.77f;
+  identity.expressions = 53;
+  for (int e = 0; e < 53; ++e) identity.rest[static_cast<std::size_t>(e)] = 0.013f * static_cast<float>(e);
   profile.identity = identity;
   save_profile(dir_ / "a.toml", "a", profile);
   const PerformerProfile loaded = load_profile(dir_ / "a.toml");
@@ -143,6 +145,10 @@ TEST_F(ProfileFile, IdentityRoundTripsAndAVersionOneProfileStillLoads) {
   EXPECT_EQ(loaded.identity->model_fingerprint, 0xF00DCAFEu);
   EXPECT_EQ(loaded.identity->components, 20);
   EXPECT_EQ(loaded.identity->alpha, identity.alpha) << "every float exactly";
+  EXPECT_EQ(loaded.identity->expressions, 53);
+  EXPECT_EQ(loaded.identity->rest, identity.rest) << "the rest point, every float exactly";
+  EXPECT_EQ(loaded.identity->rest_weights()[52], identity.rest[52]);
+  EXPECT_EQ(loaded.identity->rest_weights()[53], 0.0);
 
   const PerformerProfile old = load_profile(write(kVersionOneProfile));
   EXPECT_FALSE(old.identity.has_value()) << "version 1 has no identity: the mean face";
@@ -162,6 +168,10 @@ TEST_F(ProfileFile, AMalformedIdentityIsAnErrorNamingTheKey) {
   for (int i = 1; i <= kMaxFitComponents; ++i) too_many += ", 0.5";
   EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [" + too_many + "]\n"),
               HasSubstr("key identity.alpha: missing, or not an array of 1 to 40 numbers"));
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5]\nrest_expression = [0.5, 1.5]\n"),
+              HasSubstr("key identity.rest_expression[1]: not a number in [0, 1]"));
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5]\nrest_expression = 0.5\n"),
+              HasSubstr("key identity.rest_expression"));
   EXPECT_THAT(load_error(std::string(kVersionOneProfile) + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5]\n"),
               HasSubstr("key identity: needs version 2"));
   EXPECT_THAT(load_error(std::string(kVersionOneProfile).replace(0, 11, "version = 3")), HasSubstr("key version"));

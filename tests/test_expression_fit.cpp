@@ -7,6 +7,7 @@
 #include "core/arkit.hpp"
 #include "core/drive_signals.hpp"
 #include "core/fitting.hpp"
+#include "core/statistics.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "reference_fitter.hpp"
 
@@ -160,6 +161,77 @@ TEST(ExpressionFit, IdentityFromThirtyNoisyNeutralFramesReproducesTheNeutralLand
   EXPECT_LE(worst, 1.0);
 }
 
+// What no identity explains on a performer's face (the detector's bias, here a rest expression
+// on every neutral frame that the identity's components cannot take up) reads as expression
+// weights at rest; the rest point from the neutral frames brings them to 0 and keeps a
+// movement from the rest.
+TEST(ExpressionFit, RestPointFromNeutralFramesReadsZeroAtRest) {
+  const MorphableModel& model = ict_model();
+  std::mt19937 rng(27);
+  const Eigen::Matrix<double, 3, 4> camera = rig_camera(model);
+  const Eigen::VectorXf identity = random_identity(model, rng);
+  FitOutput::Expressions bias = FitOutput::Expressions::Zero();
+  bias[*model.expression_index("mouthFrown_L")] = 0.4;
+  bias[*model.expression_index("mouthRollUpper")] = 0.5;
+  bias[*model.expression_index("cheekSquint_R")] = 0.4;
+  bias[*model.expression_index("jawOpen")] = 0.1;
+  const Landmarks2D rest_seen = testing::project(camera, ict_landmarks(model, identity, bias));
+  std::vector<Landmarks2D> neutral;
+  for (int frame = 0; frame < 20; ++frame) neutral.push_back(noisy(rest_seen, 1.0, rng));
+  const Eigen::VectorXf fitted = fit_identity(model, LandmarkSet::F5, neutral);
+  const FitOutput::Expressions rest = fit_rest_expression(model, LandmarkSet::F5, neutral, fitted);
+  EXPECT_EQ(rest[*model.expression_index("jawOpen")], 0.0) << "the opening keeps its rest at 0";
+  EXPECT_EQ(rest[*model.expression_index("mouthClose")], 0.0);
+
+  const Fitter fitter(model, LandmarkSet::F5, {}, fitted);
+  // Rest frames, then the same face with mouthSmile_L at 0.6 on top, each held 30 frames.
+  FitOutput::Expressions smile = bias;
+  smile[*model.expression_index("mouthSmile_L")] = 0.6;
+  const Landmarks2D smile_seen = testing::project(camera, ict_landmarks(model, identity, smile));
+  // Per shape, the median over the held frames (as the GRID figures take the final silence's).
+  FitOutput fit = Fitter::initial_output();
+  const auto held_medians = [&](const Landmarks2D& seen, bool relative_to_rest) {
+    std::vector<std::vector<double>> weights(static_cast<std::size_t>(model.num_expressions()));
+    FitOutput::Expressions relative;
+    for (int frame = 0; frame < 60; ++frame) {
+      fitter.fit(noisy(seen, 1.0, rng), fit);
+      above_rest(fit.expressions, rest, relative);
+      if (frame >= 30)
+        for (int e = 0; e < model.num_expressions(); ++e)
+          weights[static_cast<std::size_t>(e)].push_back(relative_to_rest ? relative[e] : fit.expressions[e]);
+    }
+    FitOutput::Expressions medians = FitOutput::Expressions::Zero();
+    for (int e = 0; e < model.num_expressions(); ++e) medians[e] = median(weights[static_cast<std::size_t>(e)]);
+    return medians;
+  };
+  const FitOutput::Expressions raw = held_medians(rest_seen, false), relative = held_medians(rest_seen, true);
+  double worst_raw = 0, worst_relative = 0;
+  for (int e = 0; e < model.num_expressions(); ++e) {
+    if (e == *model.expression_index("jawOpen") || e == *model.expression_index("mouthClose")) continue;
+    worst_raw = std::max(worst_raw, raw[e]);
+    worst_relative = std::max(worst_relative, relative[e]);
+  }
+  const double smiling = held_medians(smile_seen, true)[*model.expression_index("mouthSmile_L")];
+  fmt::print(
+      "rest point: largest weight at rest {:.3f} as fitted, {:.3f} above the rest; mouthSmile_L 0.6 reads {:.3f}\n",
+      worst_raw, worst_relative, smiling);
+  EXPECT_GT(worst_raw, 0.2) << "the bias reads as expression weights";
+  EXPECT_LT(worst_relative, 0.1) << "above the rest point the face at rest reads 0";
+  EXPECT_NEAR(smiling, 0.6, 0.15);
+}
+
+TEST(ExpressionFit, AboveRestMapsTheRestTo0AndAFullShapeTo1) {
+  FitOutput::Expressions rest = FitOutput::Expressions::Zero(), w = FitOutput::Expressions::Zero(), out;
+  rest[0] = 0.5, rest[1] = 0.5, rest[2] = 0.5, rest[3] = 0.0, rest[4] = 0.2;
+  w[0] = 0.5, w[1] = 1.0, w[2] = 0.2, w[3] = 0.3, w[4] = 0.6;
+  above_rest(w, rest, out);
+  EXPECT_DOUBLE_EQ(out[0], 0.0);
+  EXPECT_DOUBLE_EQ(out[1], 1.0);
+  EXPECT_DOUBLE_EQ(out[2], 0.0) << "below the rest is the rest";
+  EXPECT_DOUBLE_EQ(out[3], 0.3) << "a zero rest leaves the weight";
+  EXPECT_DOUBLE_EQ(out[4], 0.5);
+}
+
 TEST(ExpressionFit, AllocatesNothingPerFrame) {
   const MorphableModel& model = ict_model();
   std::mt19937 rng(5);
@@ -171,7 +243,11 @@ TEST(ExpressionFit, AllocatesNothingPerFrame) {
     FitOutput output = Fitter::initial_output();
     test::count_allocations_on_this_thread(true);
     const long before = test::allocation_count();
-    for (int frame = 0; frame < 100; ++frame) fitter.fit(landmarks, output);
+    FitOutput::Expressions relative;
+    for (int frame = 0; frame < 100; ++frame) {
+      fitter.fit(landmarks, output);
+      above_rest(output.expressions, output.expressions, relative);
+    }
     EXPECT_EQ(test::allocation_count() - before, 0) << landmark_set_name(set);
     test::count_allocations_on_this_thread(false);
     EXPECT_LT(output.reprojection_error_px, 0.5) << "noise-free frames are explained";

@@ -81,8 +81,9 @@ struct NeutralCapture {
 };
 
 /// The performer's identity (fit_identity over the neutral frames' landmarks, docs/method.md
-/// 3); the processor is rebuilt on it and the neutral frames are measured again, so the
-/// profile's rest values come from the fit the daemon will run.
+/// 3) and rest point (fit_rest_expression on that identity, docs/arkit.md); the
+/// processor is rebuilt on them and the neutral frames are measured again, so the profile's
+/// rest values come from the fit the daemon will run.
 PerformerIdentity fit_performer_identity(const Config& config, LoadedFiles& files, NeutralCapture& neutral,
                                          std::unique_ptr<FrameProcessor>& processor) {
   const MorphableModel& model = *files.model(config.model.file);
@@ -92,6 +93,13 @@ PerformerIdentity fit_performer_identity(const Config& config, LoadedFiles& file
     identity.model_fingerprint = identity_fingerprint(model);
     identity.components = std::min(static_cast<int>(alpha.size()), kMaxFitComponents);
     for (int i = 0; i < identity.components; ++i) identity.alpha[static_cast<std::size_t>(i)] = alpha[i];
+    FitSettings fit;
+    fit.iterations = config.model.iterations;
+    const FitOutput::Expressions rest =
+        fit_rest_expression(model, config.model.landmark_set, neutral.landmarks, alpha, fit);
+    identity.expressions = model.num_expressions();
+    for (int e = 0; e < identity.expressions; ++e)
+      identity.rest[static_cast<std::size_t>(e)] = static_cast<float>(rest[e]);
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", config.model.file.string(), e.what()), kExitDataError);
   }

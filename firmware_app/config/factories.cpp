@@ -139,10 +139,12 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   FitSettings fit;
   fit.iterations = model.iterations;
   Eigen::VectorXf identity;
+  FitOutput::Expressions rest = FitOutput::Expressions::Zero();
   if (profile.identity && loaded->has_expressions()) {
-    if (profile.identity->model_fingerprint == identity_fingerprint(*loaded))
+    if (profile.identity->model_fingerprint == identity_fingerprint(*loaded)) {
       identity = profile.identity->vector(loaded->num_components());
-    else
+      rest = profile.identity->rest_weights();
+    } else
       spdlog::warn(
           "performer {}: the profile's identity was fitted to another model than {}; fitting the mean face "
           "until `lipdrive calibrate` runs with this model",
@@ -150,7 +152,7 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   }
   try {
     return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit, files.predictor(config.tracker.predictor),
-                                            identity);
+                                            identity, rest);
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }

@@ -54,6 +54,19 @@ PerformerIdentity read_identity(const toml::table& table, const fs::path& file) 
     identity.alpha[i] = static_cast<float>(*value);
   }
   identity.components = static_cast<int>(alpha->size());
+  if (const toml::node* rest_node = table.get("rest_expression")) {
+    const toml::array* rest = rest_node->as_array();
+    if (!rest || rest->size() > identity.rest.size())
+      malformed(file, "identity.rest_expression",
+                fmt::format("not an array of at most {} numbers", identity.rest.size()));
+    for (std::size_t i = 0; i < rest->size(); ++i) {
+      const auto value = (*rest)[i].value<double>();
+      if (!value || !(*value >= 0 && *value <= 1))
+        malformed(file, fmt::format("identity.rest_expression[{}]", i), "not a number in [0, 1]");
+      identity.rest[i] = static_cast<float>(*value);
+    }
+    identity.expressions = static_cast<int>(rest->size());
+  }
   return identity;
 }
 
@@ -61,8 +74,15 @@ toml::table identity_table(const PerformerIdentity& identity) {
   toml::array alpha;
   for (int i = 0; i < identity.components; ++i)
     alpha.push_back(static_cast<double>(identity.alpha[static_cast<std::size_t>(i)]));
-  return toml::table{{"model_fingerprint", static_cast<std::int64_t>(identity.model_fingerprint)},
-                     {"alpha", std::move(alpha)}};
+  toml::table table{{"model_fingerprint", static_cast<std::int64_t>(identity.model_fingerprint)},
+                    {"alpha", std::move(alpha)}};
+  if (identity.expressions > 0) {
+    toml::array rest;
+    for (int e = 0; e < identity.expressions; ++e)
+      rest.push_back(static_cast<double>(identity.rest[static_cast<std::size_t>(e)]));
+    table.insert("rest_expression", std::move(rest));
+  }
+  return table;
 }
 
 }  // namespace

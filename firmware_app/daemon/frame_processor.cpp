@@ -8,12 +8,14 @@
 namespace lipdrive {
 
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
-                               std::shared_ptr<const ShapePredictorData> predictor, const Eigen::VectorXf& identity)
+                               std::shared_ptr<const ShapePredictorData> predictor, const Eigen::VectorXf& identity,
+                               const FitOutput::Expressions& rest)
     : fitter_(model, set, settings, identity),
       arkit_(model.expression_names),
       reference_(mouth_reference(model, identity)),
       visemes_(make_viseme_solver(model, set)),
-      tracker_(std::move(predictor)) {}
+      tracker_(std::move(predictor)),
+      rest_(rest) {}
 
 const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   FrameMeasurement& r = result_;
@@ -39,8 +41,9 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   // Visemes by the model's kind: from the ARKit weights of the expression fit, or by matching
   // the model's viseme poses; either moves sealed lips to B-M-P.
   if (arkit_.from_fit()) {
+    above_rest(fit_.expressions, rest_, above_rest_);
     ArkitWeights arkit;
-    arkit_.from_expressions(std::span<const double>(fit_.expressions.data(), fit_.expressions.size()), arkit);
+    arkit_.from_expressions(std::span<const double>(above_rest_.data(), above_rest_.size()), arkit);
     r.visemes = visemes_from_arkit(arkit, r.measures.seal);
   } else if (visemes_) {
     r.visemes = visemes_->solve(fit_, r.landmarks);

@@ -32,10 +32,12 @@ class FrameProcessor {
  public:
   /// Throws std::invalid_argument when the model cannot be fitted with `set` (see Fitter).
   /// `identity`: the performer's, for a model with expression shapes (PerformerIdentity; empty =
-  /// the mean face).
+  /// the mean face), `rest` its rest point (PerformerIdentity::rest_weights; zero = none): the
+  /// ARKit weights and the visemes made from them are the fit's weights above_rest().
   FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                  std::shared_ptr<const ShapePredictorData> predictor,
-                 const Eigen::VectorXf& identity = Eigen::VectorXf());
+                 const Eigen::VectorXf& identity = Eigen::VectorXf(),
+                 const FitOutput::Expressions& rest = FitOutput::Expressions::Zero());
 
   /// Measures one luma frame (CV_8UC1). Allocation-free while the face stays tracked
   /// (acquiring it runs dlib's detector, which allocates).
@@ -52,7 +54,7 @@ class FrameProcessor {
   /// (core/arkit.hpp: from the fit when the model has expression shapes, else from the signals).
   /// Call only when that frame was tracked. Allocates nothing.
   void set_arkit(DriveSignals& signals) const {
-    set_arkit_signals(arkit_, std::span<const double>(fit_.expressions.data(), fit_.expressions.size()), signals);
+    set_arkit_signals(arkit_, std::span<const double>(above_rest_.data(), above_rest_.size()), signals);
   }
 
  private:
@@ -61,7 +63,9 @@ class FrameProcessor {
   MouthReference reference_;
   std::optional<VisemeSolver> visemes_;  // the pose match; nullopt: the model lacks the viseme poses
   FaceTracker tracker_;
-  FitOutput fit_ = Fitter::initial_output();  // warm start of the next frame
+  FitOutput fit_ = Fitter::initial_output();                            // warm start of the next frame
+  FitOutput::Expressions rest_;                                         // the performer's rest point
+  FitOutput::Expressions above_rest_ = FitOutput::Expressions::Zero();  // the last fit's weights above it
   FrameMeasurement result_;
 };
 

@@ -80,6 +80,7 @@ void add_expression_fit_command(CLI::App& app) {
   cmd->add_option("--landmark-set", args->landmark_set, "F4 or F5")->capture_default_str();
   cmd->add_option("--neutral-frames", args->neutral_frames, "Tracked frames the identity is fitted on")
       ->capture_default_str();
+  cmd->add_option("--lambda", args->settings.lambda, "The identity's regulariser")->capture_default_str();
   cmd->add_option("--sweeps", args->settings.sweeps)->capture_default_str();
   cmd->add_option("--iterations", args->settings.iterations)->capture_default_str();
   cmd->add_option("--expression-prior", args->settings.expression_prior)->capture_default_str();
