@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <concepts>
+#include <cstdint>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -28,11 +30,13 @@ struct DlibFields {
   std::vector<std::vector<dlib::vector<float, 2>>> deltas;
 };
 
-/// dlib's serialisation of a shape predictor, decoded with dlib's own number decoders but
-/// with every count checked before it is used: an element takes at least one byte, so a
-/// count beyond the bytes left in the stream is a corrupt file, and vectors grow only with
-/// the elements actually read. dlib's deserialize(std::vector&) and deserialize(matrix&)
-/// would first allocate whatever a corrupt count says (gigabytes), then fail.
+/// dlib's serialisation of a shape predictor, read with every count checked before it is
+/// used: an element takes at least one byte, so a count beyond the bytes left in the stream
+/// is a corrupt file, and vectors grow only with the elements actually read. dlib's
+/// deserialize(std::vector&) and deserialize(matrix&) would first allocate whatever a corrupt
+/// count says (gigabytes), then fail. Numbers are decoded here too, in dlib's encoding but
+/// with unsigned arithmetic and range checks: dlib's own integer decoder overflows a signed
+/// integer (undefined behaviour) on a magnitude the type cannot hold.
 class DlibReader {
  public:
   /// `in` must be seekable (a file or a string): its size bounds every count.
@@ -45,9 +49,51 @@ class DlibReader {
       throw ShapePredictorFormatError("cannot tell the size of the input");
   }
 
-  template <class T>
+  /// An integer in dlib's encoding (dlib/serialize.h, pack_int): a control byte whose low four
+  /// bits give the number of bytes that follow (1 to sizeof(T)) and whose top bit marks a
+  /// negative value, then the magnitude, least significant byte first.
+  template <std::integral T>
   void number(T& value) {
-    dlib::deserialize(value, in_);
+    const int control = in_.rdbuf()->sbumpc();
+    if (control == std::char_traits<char>::eof()) fail("the file ends inside a number");
+    const auto size = static_cast<std::streamsize>(control & 0x0F);
+    const bool negative = (control & 0x80) != 0;
+    if (size == 0 || size > static_cast<std::streamsize>(sizeof(T)))
+      fail("a number of " + std::to_string(size) + " bytes where " + std::to_string(sizeof(T)) + " at most fit");
+    std::array<unsigned char, 8> bytes{};
+    if (in_.rdbuf()->sgetn(reinterpret_cast<char*>(bytes.data()), size) != size)
+      fail("the file ends inside a number");
+    std::uint64_t magnitude = 0;
+    for (auto i = static_cast<std::size_t>(size); i-- > 0;) magnitude = magnitude << 8 | bytes[i];
+    constexpr auto max = static_cast<std::uint64_t>(std::numeric_limits<T>::max());
+    if (!negative && magnitude <= max) {
+      value = static_cast<T>(magnitude);
+      return;
+    }
+    if constexpr (std::is_signed_v<T>) {
+      if (negative && magnitude <= max + 1) {  // -magnitude, without forming +magnitude in T
+        value = magnitude == 0 ? T{0} : static_cast<T>(-static_cast<T>(magnitude - 1) - 1);
+        return;
+      }
+    }
+    fail(std::string(negative ? "-" : "") + std::to_string(magnitude) + " does not fit the number read");
+  }
+
+  /// A float in dlib's encoding (dlib/serialize.h, deserialize_floating_point): a mantissa
+  /// (int64) and an exponent (int16) as two integers above, converted by dlib's float_details
+  /// (mantissa * 2^exponent, three exponents reserved for infinities and NaN). A first byte
+  /// with any of the bits 0x70 set is dlib's older text encoding, which dlib's reader reads.
+  void number(float& value) {
+    const int first = in_.rdbuf()->sgetc();
+    if (first != std::char_traits<char>::eof() && (first & 0x70) != 0) {
+      if (dlib::old_deserialize_floating_point(value, in_)) fail("a malformed number in dlib's text encoding");
+      return;
+    }
+    std::int64_t mantissa = 0;
+    std::int16_t exponent = 0;
+    number(mantissa);
+    number(exponent);
+    value = static_cast<float>(dlib::float_details(mantissa, exponent));
   }
 
   /// std::vector<T>: its count, then each element read by `element(T&)`.
@@ -74,6 +120,11 @@ class DlibReader {
   }
 
  private:
+  [[noreturn]] void fail(const std::string& what) {
+    throw ShapePredictorFormatError("not a dlib shape predictor: " + what + " (at byte " +
+                                    std::to_string(static_cast<long long>(in_.tellg())) + ")");
+  }
+
   void check_count(unsigned long count, const char* what) {
     const std::istream::pos_type at = in_.tellg();
     const auto left = static_cast<unsigned long>(end_ - at);
@@ -91,35 +142,31 @@ class DlibReader {
 // deserialize functions it calls for its members.
 DlibFields read_fields(std::istream& in) {
   DlibFields f;
-  try {
-    DlibReader read(in);
-    int version = 0;
-    read.number(version);
-    if (version != 1)
-      throw ShapePredictorFormatError("not a dlib shape predictor (version " + std::to_string(version) + ")");
-    read.column(f.initial_shape, "initial shape");
-    read.vector(f.forests, "cascades", [&](std::vector<dlib::impl::regression_tree>& forest) {
-      read.vector(forest, "trees", [&](dlib::impl::regression_tree& tree) {
-        read.vector(tree.splits, "splits", [&](dlib::impl::split_feature& split) {
-          read.number(split.idx1);
-          read.number(split.idx2);
-          read.number(split.thresh);
-        });
-        read.vector(tree.leaf_values, "leaves", [&](dlib::matrix<float, 0, 1>& leaf) { read.column(leaf, "leaf"); });
+  DlibReader read(in);
+  int version = 0;
+  read.number(version);
+  if (version != 1)
+    throw ShapePredictorFormatError("not a dlib shape predictor (version " + std::to_string(version) + ")");
+  read.column(f.initial_shape, "initial shape");
+  read.vector(f.forests, "cascades", [&](std::vector<dlib::impl::regression_tree>& forest) {
+    read.vector(forest, "trees", [&](dlib::impl::regression_tree& tree) {
+      read.vector(tree.splits, "splits", [&](dlib::impl::split_feature& split) {
+        read.number(split.idx1);
+        read.number(split.idx2);
+        read.number(split.thresh);
       });
+      read.vector(tree.leaf_values, "leaves", [&](dlib::matrix<float, 0, 1>& leaf) { read.column(leaf, "leaf"); });
     });
-    read.vector(f.anchor_idx, "cascades", [&](std::vector<unsigned long>& anchors) {
-      read.vector(anchors, "anchors", [&](unsigned long& anchor) { read.number(anchor); });
+  });
+  read.vector(f.anchor_idx, "cascades", [&](std::vector<unsigned long>& anchors) {
+    read.vector(anchors, "anchors", [&](unsigned long& anchor) { read.number(anchor); });
+  });
+  read.vector(f.deltas, "cascades", [&](std::vector<dlib::vector<float, 2>>& deltas) {
+    read.vector(deltas, "feature pixels", [&](dlib::vector<float, 2>& delta) {
+      read.number(delta.x());
+      read.number(delta.y());
     });
-    read.vector(f.deltas, "cascades", [&](std::vector<dlib::vector<float, 2>>& deltas) {
-      read.vector(deltas, "feature pixels", [&](dlib::vector<float, 2>& delta) {
-        read.number(delta.x());
-        read.number(delta.y());
-      });
-    });
-  } catch (const dlib::serialization_error& e) {
-    throw ShapePredictorFormatError(std::string("not a dlib shape predictor: ") + e.what());
-  }
+  });
   return f;
 }
 

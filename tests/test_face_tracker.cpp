@@ -232,6 +232,17 @@ TEST(ShapePredictor, DamagedCompactFilesAreErrors) {
   std::filesystem::remove_all(dir);
 }
 
+// What reading `bytes` as a dlib predictor file throws ("(read)" when it reads).
+std::string error_of(const std::string& bytes) {
+  std::istringstream in(bytes);
+  try {
+    ShapePredictorData::read_dlib(in, &FaceDetector::builtin);  // called only when the read succeeds
+  } catch (const ShapePredictorFormatError& e) {
+    return e.what();
+  }
+  return "(read)";
+}
+
 // Found by fuzz_predictor: a corrupt count made the reader allocate gigabytes before it
 // failed (dlib's deserialize sizes a vector or matrix to whatever the count says). A count
 // beyond the bytes left is an error naming it, before anything is allocated.
@@ -239,15 +250,6 @@ TEST(ShapePredictor, CountsBeyondTheBytesLeftAreAnErrorNamingThem) {
   constexpr unsigned long kHuge = 1ul << 40;
   dlib::matrix<float, 0, 1> mean_shape(2 * kNumLandmarks);
   mean_shape = 0.5;
-  const auto error_of = [](const std::string& bytes) -> std::string {
-    std::istringstream in(bytes);
-    try {
-      ShapePredictorData::read_dlib(in, &FaceDetector::builtin);  // called only when the read succeeds
-    } catch (const ShapePredictorFormatError& e) {
-      return e.what();
-    }
-    return "(read)";
-  };
   std::ostringstream cascades;  // the version, the mean shape, then 2^40 cascades
   dlib::serialize(1, cascades);
   dlib::serialize(mean_shape, cascades);
@@ -279,6 +281,40 @@ TEST(ShapePredictor, CountsBeyondTheBytesLeftAreAnErrorNamingThem) {
   dlib::serialize(2l, wide);
   dlib::serialize(2l, wide);
   EXPECT_NE(error_of(wide.str()).find("initial shape is not a column"), std::string::npos) << error_of(wide.str());
+}
+
+// Found by fuzz_predictor: the five bytes f4 00 00 00 80 (a version in four bytes, negative,
+// magnitude 2^31) made dlib's own integer decoder overflow a signed int, which is undefined
+// behaviour. Numbers are decoded with range checks: the most negative int is read as such,
+// and a number its type cannot hold is an error naming it.
+TEST(ShapePredictor, NumbersAreRangeCheckedNotOverflowed) {
+  using namespace std::string_literals;
+  EXPECT_NE(error_of("\xf4\x00\x00\x00\x80"s).find("version -2147483648"), std::string::npos)
+      << error_of("\xf4\x00\x00\x00\x80"s);
+  EXPECT_NE(error_of("\x04\x00\x00\x00\x80"s).find("2147483648 does not fit"), std::string::npos)
+      << error_of("\x04\x00\x00\x00\x80"s);
+  EXPECT_NE(error_of("\x05\x01\x00\x00\x00\x00"s).find("a number of 5 bytes where 4 at most fit"), std::string::npos)
+      << error_of("\x05\x01\x00\x00\x00\x00"s);
+  EXPECT_NE(error_of("\x04\x01\x00"s).find("the file ends inside a number"), std::string::npos)
+      << error_of("\x04\x01\x00"s);
+  // An unsigned count cannot be negative: the version, then a mean shape whose row count
+  // (a long) is fine, but the cascade count carries the sign bit.
+  std::ostringstream negative_count;
+  dlib::serialize(1, negative_count);
+  dlib::matrix<float, 0, 1> mean_shape(2 * kNumLandmarks);
+  mean_shape = 0.5;
+  dlib::serialize(mean_shape, negative_count);
+  negative_count << "\x81\x01"s;
+  EXPECT_NE(error_of(negative_count.str()).find("-1 does not fit"), std::string::npos) << error_of(negative_count.str());
+  // A float's mantissa of -2^63 is the most negative int64 and reads as such: the read goes
+  // on to the cascade count after it, where this file ends (2 + 2 + 2 + 9 + 2 bytes).
+  std::ostringstream extreme_float;
+  dlib::serialize(1, extreme_float);
+  dlib::serialize(-1l, extreme_float);
+  dlib::serialize(-1l, extreme_float);  // a column of one value (newer dlib negates the sizes)
+  extreme_float << "\x88\x00\x00\x00\x00\x00\x00\x00\x80\x01\x00"s;  // mantissa -2^63, exponent 0
+  EXPECT_NE(error_of(extreme_float.str()).find("the file ends inside a number (at byte 17)"), std::string::npos)
+      << error_of(extreme_float.str());
 }
 
 TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
