@@ -8,6 +8,7 @@
 #include "daemon_process.hpp"
 #include "drivers/audio_file.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "firmware_app/daemon/take_recorder.hpp"
 #include "firmware_app/daemon/take_sound.hpp"
 #include "firmware_app/daemon/voice_room.hpp"
 #include "firmware_app/tables/csv_table.hpp"
@@ -178,6 +179,54 @@ TEST(TakeSound, WithoutATakeTheBlocksAreDropped) {
   sound.push(timeline_block(1000 * kBlock));
   sound.close();
   EXPECT_EQ(decode_audio(dir.path() / "take.wav", kRate).samples.size(), static_cast<std::size_t>(kBlock));
+}
+
+// The clock a TakeSound reads in the tests below.
+std::int64_t fake_now_ns = 0;
+
+// A block stamped later than the clock reads (the audio clock jumped ahead) is left out rather
+// than reached with hours of silence; the blocks after it go on where the sound was.
+TEST(TakeSound, ABlockStampedAheadOfTheClockIsLeftOutNotFilledUpTo) {
+  test::TempDir dir;
+  const fs::path wav = dir.path() / "take.wav";
+  fake_now_ns = timeline_ns(10 * kBlock);
+  TakeSound sound(kRate, [] { return fake_now_ns; });
+  sound.open(wav);
+  sound.start_at(timeline_ns(0));
+  sound.push(timeline_block(0));
+  AudioBlock jumped = timeline_block(kBlock);
+  jumped.capture_time_ns += 2LL * 3600 * 1'000'000'000;  // two hours ahead
+  sound.push(jumped);
+  sound.push(timeline_block(kBlock));
+  sound.close();
+  const DecodedAudio back = decode_audio(wav, kRate);
+  ASSERT_EQ(back.samples.size(), static_cast<std::size_t>(2 * kBlock));
+  for (std::size_t k = 0; k < back.samples.size(); ++k)
+    ASSERT_NEAR(back.samples[k], timeline_sample(static_cast<std::int64_t>(k)), 1e-4) << "sample " << k;
+}
+
+// Whether this process holds `file` open.
+bool open_here(const fs::path& file) {
+  const fs::path target = fs::canonical(file);
+  for (const auto& fd : fs::directory_iterator("/proc/self/fd")) {
+    std::error_code ec;
+    if (fs::read_symlink(fd.path(), ec) == target) return true;
+  }
+  return false;
+}
+
+// A take whose rows cannot be written ends, and its sound ends with it: the sound file is
+// closed, not kept open and written on (the rows go through a link to /dev/full).
+TEST(TakeSound, EndsWhenItsTakeFailsToWrite) {
+  test::TempDir dir;
+  fs::create_symlink("/dev/full", dir.path() / "take.csv");
+  TakeSound sound(kRate);
+  TakeRecorder recorder("clip", 50ms, std::nullopt, &sound);
+  recorder.start(dir.path() / "take.csv");
+  ASSERT_TRUE(test::eventually([&] { return recorder.error().has_value(); }, 10s));
+  EXPECT_NE(recorder.error()->find("No space left on device"), std::string::npos) << *recorder.error();
+  ASSERT_TRUE(fs::exists(dir.path() / "take.wav")) << "the take began with its sound";
+  EXPECT_FALSE(open_here(dir.path() / "take.wav")) << "the sound file was closed with the take";
 }
 
 // A take recorded with [voice] keeps its sound beside it, on its rows' timeline, and trains a

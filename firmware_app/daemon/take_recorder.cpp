@@ -205,11 +205,10 @@ bool TakeRecorder::write_all(const char* data, std::size_t size) {
 void TakeRecorder::fail(const std::string& message) {
   spdlog::error("{}", message);
   active_ = false;
-  {
-    std::lock_guard lock(mutex_);
-    error_ = message;
-  }
   fd_.reset();
+  if (sound_) sound_->close();  // the take ended: so does its sound
+  std::lock_guard lock(mutex_);
+  error_ = message;
 }
 
 }  // namespace lipdrive

@@ -15,6 +15,7 @@ void TakeSound::open(const std::filesystem::path& file) {
   zero_ns_.reset();
   ring_.clear();  // older sound is not the take's
   ring_.take_dropped();
+  future_blocks_ = 0;
   try {
     file_.emplace(file, sample_rate_);
   } catch (const AudioSourceError& e) {
@@ -25,7 +26,11 @@ void TakeSound::open(const std::filesystem::path& file) {
 void TakeSound::drain() {
   if (file_ && !zero_ns_) return;  // the blocks wait for the take's first row
   ring_.consume([&](const AudioBlock& block) {
-    if (file_) write(block);  // without an open take (or after a write error) dropped
+    if (!file_) return;  // without an open take (or after a write error) dropped
+    if (block.capture_time_ns > now_ns_())  // read after the block was queued
+      ++future_blocks_;
+    else
+      write(block);
   });
 }
 
@@ -59,6 +64,10 @@ void TakeSound::close() {
   file_.reset();
   if (const std::uint64_t lost = ring_.take_dropped(); lost > 0)
     spdlog::warn("take sound: {} blocks were lost because the recorder could not keep up", lost);
+  if (future_blocks_ > 0)
+    spdlog::warn("take sound: {} blocks were stamped later than the clock read (the audio clock jumped ahead) and "
+                 "were left out",
+                 future_blocks_);
 }
 
 }  // namespace lipdrive

@@ -3,7 +3,9 @@
 // by the take recorder's thread. The file's first sample was captured at the capture_time_ns
 // of the take's first row, so rows and sound share one timeline: sample k at that time plus
 // k / rate. Lost blocks and a sound that starts late are filled with silence; what came before
-// the first row is cut.
+// the first row is cut. A block stamped later than the clock reads (an audio clock that jumped
+// ahead) is left out rather than filled up to with silence: the silence a gap adds is bounded
+// by the time that really passed.
 //
 // Thread model: push() is called by one thread, the audio listener's: it never blocks and never
 // allocates (a full ring drops the block, counted). Every other call is made by the take
@@ -13,6 +15,7 @@
 
 #include "drivers/audio_file.hpp"
 #include "drivers/audio_source.hpp"
+#include "drivers/clock.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
 
 #include <cstdint>
@@ -23,7 +26,9 @@ namespace lipdrive {
 
 class TakeSound {
  public:
-  explicit TakeSound(int sample_rate) : sample_rate_(sample_rate) {}
+  /// `now_ns` reads the clock the blocks are stamped on (a test passes its own).
+  explicit TakeSound(int sample_rate, std::int64_t (*now_ns)() = &monotonic_ns)
+      : sample_rate_(sample_rate), now_ns_(now_ns) {}
   TakeSound(const TakeSound&) = delete;
   TakeSound& operator=(const TakeSound&) = delete;
 
@@ -47,11 +52,13 @@ class TakeSound {
   void write(const AudioBlock& block);
 
   int sample_rate_;
+  std::int64_t (*now_ns_)();
   SingleProducerRing<AudioBlock, kRingSize> ring_;  // full: blocks lost, reported when the take closes
 
   // Recorder thread's.
   std::optional<WavWriter> file_;
   std::optional<std::int64_t> zero_ns_;
+  std::uint64_t future_blocks_ = 0;  // stamped later than the clock read: left out, reported at close
 };
 
 }  // namespace lipdrive
