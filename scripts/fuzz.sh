@@ -10,10 +10,11 @@
 # build-asan/fuzz-findings/TARGET/ and fails the run; libFuzzer's final statistics go to
 # build-asan/fuzz-logs/TARGET.log, and one summary line per target to stdout.
 # A campaign is a random search: what it finds depends on how long it ran and on the inputs
-# earlier runs kept. The smoke run is the same search every time on the same code (a count of
-# inputs instead of a time, a fixed random seed, nothing kept from earlier runs), so it fails
-# CI on what a change brings into its reach, not at random; 120 s per target at most
-# (a slower machine then stops it early, and says so).
+# earlier runs kept. The smoke run repeats its search on the same code (a count of inputs
+# instead of a time, a fixed random seed, nothing kept from earlier runs; only a target whose
+# own behaviour varies, such as the configuration's checks of files on disk, strays a little),
+# so it fails CI on what a change brings into its reach rather than on a lucky draw; 120 s per
+# target at most (a slower machine then stops it early, and says so).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
