@@ -22,6 +22,10 @@ namespace lipdrive {
 namespace {
 
 constexpr int kMaxTreeDepth = 8;  // leaf indices are stored in 8 bits
+// The largest leaf increment either file may hold, in box units (dlib's 68-point model's is
+// 0.07): with it the shape stays within the range where its pixel positions are integers.
+constexpr float kMaxLeafIncrement = 16.0f;
+constexpr float kLeafSteps = (1 << 23) - 1;  // a leaf's largest |increment| as a 24-bit integer
 
 struct DlibFields {
   dlib::matrix<float, 0, 1> initial_shape;
@@ -192,8 +196,11 @@ void check_fields(const DlibFields& f) {
         fail("trees of different depths (cascade " + std::to_string(c) + ")");
       for (const auto& s : tree.splits)
         if (s.idx1 >= features || s.idx2 >= features) fail("split refers to a missing feature pixel");
-      for (const auto& leaf : tree.leaf_values)
+      for (const auto& leaf : tree.leaf_values) {
         if (leaf.size() != 2 * kNumLandmarks) fail("leaf of the wrong size");
+        for (const float v : leaf)
+          if (!(std::abs(v) <= kMaxLeafIncrement)) fail("a leaf increment that is not a finite number of box sizes");
+      }
     }
   }
 }
@@ -240,8 +247,24 @@ struct OwnedArrays {
   std::vector<std::uint16_t> anchor;
   std::vector<float> delta;
   std::vector<ShapePredictorData::Split> splits;
-  std::vector<float> leaf_values;
+  std::vector<ShapePredictorData::Leaf> leaf_increments;
 };
+
+/// A dlib leaf's increments as 24-bit integers with their own scale (ShapePredictorData::Leaf).
+ShapePredictorData::Leaf quantised(const dlib::matrix<float, 0, 1>& increments) {
+  ShapePredictorData::Leaf leaf{};
+  float largest = 0;
+  for (const float v : increments) largest = std::max(largest, std::abs(v));
+  leaf.scale = largest / kLeafSteps;
+  if (largest == 0) return leaf;  // all zero
+  for (int k = 0; k < ShapePredictorData::kShapeSize; ++k) {
+    const auto q = static_cast<std::int32_t>(
+        std::clamp(std::lround(increments(k) / leaf.scale), -static_cast<long>(kLeafSteps), static_cast<long>(kLeafSteps)));
+    leaf.high[k] = static_cast<std::int16_t>(q >> 8);  // floor(q / 256): q = 256 high + low
+    leaf.low[k] = static_cast<std::uint8_t>(q & 0xFF);
+  }
+  return leaf;
+}
 
 int largest_cascade(std::span<const std::int32_t> first_feature) {
   int largest = 0;
@@ -254,9 +277,11 @@ int largest_cascade(std::span<const std::int32_t> first_feature) {
 
 static_assert(std::endian::native == std::endian::little, "the .lpp file is mapped as little-endian arrays");
 static_assert(sizeof(ShapePredictorData::Split) == 8 && std::is_trivially_copyable_v<ShapePredictorData::Split>);
+static_assert(sizeof(ShapePredictorData::Leaf) == 412 && alignof(ShapePredictorData::Leaf) == 4 &&
+              std::is_trivially_copyable_v<ShapePredictorData::Leaf>);
 
 constexpr std::string_view kCompactMagic{"LPDPRED\0", 8};
-constexpr std::uint32_t kCompactVersion = 1;
+constexpr std::uint32_t kCompactVersion = 2;
 constexpr std::size_t kCompactHeaderSize = 64, kCompactAlignment = 64;
 // Bounds on a header's counts (dlib's 68-point model: 15 cascades, 7,500 trees, 7,500 feature
 // pixels), so that a forged header cannot make the sizes below overflow.
@@ -269,7 +294,7 @@ struct CompactCounts {
 
 /// Where each array of the payload starts, and where the file ends.
 struct CompactLayout {
-  std::size_t initial_shape, cascade_first_tree, cascade_first_feature, anchor, delta, splits, leaf_values, detector,
+  std::size_t initial_shape, cascade_first_tree, cascade_first_feature, anchor, delta, splits, leaf_increments, detector,
       end;
 };
 
@@ -288,7 +313,7 @@ CompactLayout compact_layout(const CompactCounts& n) {
   l.anchor = next(n.features * sizeof(std::uint16_t));
   l.delta = next(2 * std::size_t{n.features} * sizeof(float));
   l.splits = next(n.trees * splits_per_tree * sizeof(ShapePredictorData::Split));
-  l.leaf_values = next(n.trees * (splits_per_tree + 1) * ShapePredictorData::kShapeSize * sizeof(float));
+  l.leaf_increments = next(n.trees * (splits_per_tree + 1) * sizeof(ShapePredictorData::Leaf));
   l.detector = at;
   l.end = at + n.detector_bytes;
   return l;
@@ -339,7 +364,7 @@ ShapePredictorData ShapePredictorData::read_dlib(std::istream& in, FaceDetector 
     for (const auto& tree : f.forests[c]) {
       for (const auto& s : tree.splits)
         a->splits.push_back({static_cast<std::uint16_t>(s.idx1), static_cast<std::uint16_t>(s.idx2), s.thresh});
-      for (const auto& leaf : tree.leaf_values) a->leaf_values.insert(a->leaf_values.end(), leaf.begin(), leaf.end());
+      for (const auto& leaf : tree.leaf_values) a->leaf_increments.push_back(quantised(leaf));
     }
     a->cascade_first_tree.push_back(a->cascade_first_tree.back() + static_cast<std::int32_t>(f.forests[c].size()));
     a->cascade_first_feature.push_back(a->cascade_first_feature.back() + static_cast<std::int32_t>(f.deltas[c].size()));
@@ -353,7 +378,7 @@ ShapePredictorData ShapePredictorData::read_dlib(std::istream& in, FaceDetector 
   d.anchor_ = a->anchor;
   d.delta_ = a->delta;
   d.splits_ = a->splits;
-  d.leaf_values_ = a->leaf_values;
+  d.leaf_increments_ = a->leaf_increments;
   d.max_features_ = largest_cascade(d.cascade_first_feature_);
   d.storage_ = std::move(a);
   return d;
@@ -375,7 +400,7 @@ std::vector<std::uint8_t> ShapePredictorData::write_compact() const {
   put(layout.anchor, anchor_);
   put(layout.delta, delta_);
   put(layout.splits, splits_);
-  put(layout.leaf_values, leaf_values_);
+  put(layout.leaf_increments, leaf_increments_);
   put(layout.detector, std::span(detector));
 
   std::memcpy(file.data(), kCompactMagic.data(), kCompactMagic.size());
@@ -403,7 +428,7 @@ ShapePredictorData ShapePredictorData::read_compact(std::span<const std::uint8_t
     fail("not a lipdrive predictor file (no LPDPRED header)");
   if (const std::uint32_t version = get_u32(bytes, 8); version != kCompactVersion)
     fail("predictor file version " + std::to_string(version) + "; this lipdrive reads version " +
-         std::to_string(kCompactVersion));
+         std::to_string(kCompactVersion) + " (convert the predictor again: lipdrive predictor convert)");
   if (const std::uint32_t landmarks = get_u32(bytes, 12); landmarks != kNumLandmarks)
     fail("predicts " + std::to_string(landmarks) + " landmarks; lipdrive needs the 68 iBUG landmarks");
   const CompactCounts counts{get_u32(bytes, 16), get_u32(bytes, 20), get_u32(bytes, 24), get_u32(bytes, 28),
@@ -433,7 +458,7 @@ ShapePredictorData ShapePredictorData::read_compact(std::span<const std::uint8_t
   d.anchor_ = view_of<std::uint16_t>(bytes, layout.anchor, counts.features);
   d.delta_ = view_of<float>(bytes, layout.delta, 2 * std::size_t{counts.features});
   d.splits_ = view_of<Split>(bytes, layout.splits, counts.trees * splits_per_tree);
-  d.leaf_values_ = view_of<float>(bytes, layout.leaf_values, counts.trees * leaves_per_tree * kShapeSize);
+  d.leaf_increments_ = view_of<Leaf>(bytes, layout.leaf_increments, counts.trees * leaves_per_tree);
 
   // Every offset and index, before anything is evaluated.
   const auto ascending = [&](std::span<const std::int32_t> first, std::uint32_t total, int max_step) {
@@ -459,6 +484,8 @@ ShapePredictorData ShapePredictorData::read_compact(std::span<const std::uint8_t
     return std::all_of(v.begin(), v.end(), [](float x) { return std::isfinite(x); });
   };
   if (!finite(d.initial_shape_) || !finite(d.delta_)) fail("non-finite values");
+  for (const Leaf& leaf : d.leaf_increments_)
+    if (!(leaf.scale >= 0 && leaf.scale <= kMaxLeafIncrement / kLeafSteps)) fail("a leaf scale out of range");
   d.max_features_ = largest_cascade(d.cascade_first_feature_);
   d.storage_ = std::move(owner);
   return d;
@@ -535,7 +562,7 @@ void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2
     read_feature_pixels(gray, box, c);
     const int first_tree = d.cascade_first_tree_[c], end_tree = d.cascade_first_tree_[c + 1];
     // The pixels are fixed within a cascade, so all its trees are walked first; the leaf
-    // vectors (scattered over ~65 MB) are then summed in dlib's order, fetched ahead.
+    // vectors (scattered over ~49 MB) are then summed in dlib's order, fetched ahead.
     // kLanes trees descend level by level together: their walks do not depend on each other,
     // so the processor overlaps them, and each step is a comparison turned into the child's
     // index, not a branch it would mispredict half the time.
@@ -551,17 +578,19 @@ void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2
         }
       for (int lane = 0; lane < lanes; ++lane) leaves_[t + lane] = static_cast<std::uint8_t>(node[lane] - splits);
     }
-    const auto leaf_values = [&](int t) {
-      return &d.leaf_values_[(static_cast<std::size_t>(t) * (splits + 1) + leaves_[t]) * kShapeSize];
+    const auto leaf = [&](int t) -> const ShapePredictorData::Leaf& {
+      return d.leaf_increments_[static_cast<std::size_t>(t) * (splits + 1) + leaves_[t]];
     };
     constexpr int kPrefetchDistance = 24;
     for (int t = first_tree; t < end_tree; ++t) {
       if (t + kPrefetchDistance < end_tree) {
-        const char* ahead = reinterpret_cast<const char*>(leaf_values(t + kPrefetchDistance));
-        for (int byte = 0; byte < kShapeSize * 4; byte += 64) __builtin_prefetch(ahead + byte);
+        const char* ahead = reinterpret_cast<const char*>(&leaf(t + kPrefetchDistance));
+        for (std::size_t byte = 0; byte < sizeof(ShapePredictorData::Leaf); byte += 64) __builtin_prefetch(ahead + byte);
+        __builtin_prefetch(ahead + sizeof(ShapePredictorData::Leaf) - 1);  // a leaf starts anywhere in a line
       }
-      const float* increment = leaf_values(t);
-      for (int k = 0; k < kShapeSize; ++k) shape_[k] += increment[k];
+      const ShapePredictorData::Leaf& increment = leaf(t);
+      for (int k = 0; k < kShapeSize; ++k)
+        shape_[k] += static_cast<float>(256 * increment.high[k] + increment.low[k]) * increment.scale;
     }
   }
   const double box_w = static_cast<double>(box.right - box.left);

@@ -8,19 +8,25 @@
 // per-call scratch. The arithmetic follows dlib's step for step (float shape, double
 // similarity transform, nearest-pixel lookup, 0 outside the image), so the same pixels are
 // read and the same leaves are chosen; unlike dlib's rounded `point`s, the result keeps the
-// sub-pixel position (tests/test_face_tracker.cpp compares every leaf and landmark with dlib's).
-// The leaf increments stay 32-bit floats: with 16-bit ones the shape moves by ~0.005 px, which
-// is enough for a few feature pixels a cascade to be read one pixel over, and 4 % of the trees
-// then chose another leaf (0.004 inter-ocular distances from dlib's landmarks on LFPW).
+// sub-pixel position. The one difference is the leaf increments: each leaf's 136 values are
+// stored as 24-bit integers with one f32 scale per leaf (Leaf below), 412 bytes instead of 544,
+// which takes the 65 MB of leaves every frame reads from to 49 MB. A value moves by at most
+// half a step, 2^-24 of its leaf's largest value; a feature pixel that lay within that of a
+// pixel boundary is read one pixel over now and then, so 99.97 % of the trees choose dlib's
+// leaf on the LFPW photographs and the landmarks differ from dlib's by 4e-5 inter-ocular
+// distances on average (tests/test_face_tracker.cpp holds both to their bounds; 16-bit leaves
+// moved the shape by ~0.005 px, 4 % of the trees then chose another leaf, 0.004 inter-ocular
+// distances).
 //
 // Two sources: dlib's own .dat serialization (read_dlib, seconds: ~95 MB of small objects),
 // and lipdrive's compact .lpp file (read_compact: the arrays as they are used, mapped from
 // the file, with the face detector the predictor was trained with; milliseconds). Layout of
-// the .lpp, version 1; integers and floats little-endian (IEEE-754 binary32):
+// the .lpp, version 2 (version 1 had f32 leaves); integers and floats little-endian
+// (IEEE-754 binary32):
 //
 //   offset  size  field
 //        0     8  magic "LPDPRED" + NUL
-//        8     4  u32 format version = 1
+//        8     4  u32 format version = 2
 //       12     4  u32 landmarks = 68
 //       16     4  u32 tree depth D (1..8): 2^D - 1 splits and 2^D leaves per tree
 //       20     4  u32 cascades C
@@ -38,7 +44,8 @@
 //                   f32[2F]                its offset from the anchor in the mean shape
 //                   {u16, u16, f32}[T (2^D - 1)]  splits, breadth first within a tree: go to
 //                                          the left child when pixel[a] - pixel[b] > threshold
-//                   f32[T 2^D 136]         leaf increments, leaf after leaf, tree after tree
+//                   {f32, i16[136], u8[136]}[T 2^D]  leaves, leaf after leaf, tree after tree:
+//                                          increment k = (256 high[k] + low[k]) * scale
 //                   u8[B]                  the face detector, dlib's serialization
 //
 // The file ends at the end of the payload.
@@ -110,6 +117,15 @@ class ShapePredictorData {
     float threshold;
   };
 
+  /// One leaf's shape increments as 24-bit integers, split into a high and a low part so that
+  /// 16 of them widen to floats in a few vector instructions: increment k =
+  /// (256 high[k] + low[k]) * scale, scale = the largest |increment| / (2^23 - 1).
+  struct Leaf {
+    float scale;
+    std::int16_t high[kShapeSize];
+    std::uint8_t low[kShapeSize];
+  };
+
  private:
   friend class ShapePredictor;
   explicit ShapePredictorData(FaceDetector detector) : detector_(std::move(detector)) {}
@@ -123,7 +139,7 @@ class ShapePredictorData {
   std::span<const std::uint16_t> anchor_;                // landmark each feature pixel is attached to
   std::span<const float> delta_;                         // 2 per feature: offset from its anchor
   std::span<const Split> splits_;                        // breadth-first within a tree, tree after tree
-  std::span<const float> leaf_values_;                   // per leaf: kShapeSize shape increments
+  std::span<const Leaf> leaf_increments_;                // 2^depth leaves per tree, tree after tree
   std::shared_ptr<const void> storage_;                  // the mapped file, or the arrays read_dlib built
   FaceDetector detector_;
 };

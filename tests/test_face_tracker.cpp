@@ -28,6 +28,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <vector>
 
@@ -85,8 +86,9 @@ std::vector<dlib::rectangle> detect(const cv::Mat& gray) {
 
 /// Our predictor (the compact file the build converts from Debian's) against dlib's own on
 /// face boxes: the mean distance of the 68 landmarks over the inter-ocular distance, and how
-/// many trees chose dlib's leaf. The same arithmetic on the same floats: every leaf agrees, and
-/// the landmarks rounded as dlib rounds them are dlib's.
+/// many trees chose dlib's leaf. The same arithmetic on leaves stored in 24 bits
+/// (core/shape_predictor.hpp): the performance issue's bound is a mean difference of at most
+/// 0.001 inter-ocular distances, and at least 99.9 % of the trees must choose dlib's leaf.
 struct Agreement {
   int boxes = 0;
   double sum_iod = 0, worst_iod = 0;
@@ -114,11 +116,17 @@ struct Agreement {
     ++boxes;
   }
   double mean_iod() const { return sum_iod / std::max(boxes, 1); }
+  double same_leaf_fraction() const { return static_cast<double>(same_leaves) / static_cast<double>(std::max(trees, 1L)); }
+  void expect_within_bounds(const std::string& name) const {
+    EXPECT_GT(boxes, 0) << name;
+    EXPECT_LE(mean_iod(), 1e-3) << name << ": " << summary();
+    EXPECT_GE(same_leaf_fraction(), 0.999) << name << ": " << summary();
+  }
   std::string summary() const {
     return fmt::format(
         "{} boxes: mean point difference {:.2e} inter-ocular distances (worst box {:.2e}); "
         "{:.3f} % of {} trees chose dlib's leaf",
-        boxes, mean_iod(), worst_iod, 100.0 * same_leaves / std::max(trees, 1L), trees);
+        boxes, mean_iod(), worst_iod, 100.0 * same_leaf_fraction(), trees);
   }
 };
 
@@ -144,9 +152,7 @@ TEST(ShapePredictor, MatchesDlibOnGridFramesAndLfpwPhotographs) {
        {std::pair{"grid", &grid}, std::pair{"grid_shifted_boxes", &shifted}, std::pair{"lfpw", &lfpw}}) {
     fmt::print("compact predictor against dlib's, {}: {}\n", name, agreement->summary());
     RecordProperty(fmt::format("against_dlib_{}", name), agreement->summary());
-    EXPECT_GT(agreement->boxes, 0) << name;
-    EXPECT_EQ(agreement->same_leaves, agreement->trees) << name << ": " << agreement->summary();
-    EXPECT_EQ(agreement->worst_iod, 0) << name << ": " << agreement->summary();
+    agreement->expect_within_bounds(name);
   }
 }
 
@@ -165,8 +171,7 @@ TEST(ShapePredictor, MatchesDlibOnGeneratedFace) {
     agreement.add(image, faces.front());
   }
   fmt::print("compact predictor against dlib's, generated face: {}\n", agreement.summary());
-  EXPECT_EQ(agreement.same_leaves, agreement.trees) << agreement.summary();
-  EXPECT_EQ(agreement.worst_iod, 0) << agreement.summary();
+  agreement.expect_within_bounds("generated face");
 }
 
 // The compact file holds exactly what reading dlib's file gives: the same landmarks, bit for
@@ -223,6 +228,8 @@ TEST(ShapePredictor, DamagedCompactFilesAreErrors) {
   auto version = good;
   version[8] = 7;
   expect_error(version, "version 7", "a later version");
+  version[8] = 1;  // f32 leaves: made by an earlier lipdrive
+  expect_error(version, "convert the predictor again", "the earlier version");
   auto landmarks = good;
   landmarks[12] = 5;
   expect_error(landmarks, "5 landmarks", "a 5-point predictor");
@@ -354,6 +361,27 @@ TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
   } catch (const CommandError& e) {
     EXPECT_EQ(e.exit_code(), kExitDataError);
     EXPECT_NE(std::string(e.what()).find("5 landmarks"), std::string::npos) << e.what();
+  }
+  // A 68-point predictor whose leaf moves the shape by a billion box sizes (or by NaN): its
+  // increments cannot be stored in 24 bits, and no real predictor has them.
+  for (const float increment : {1e9f, std::numeric_limits<float>::quiet_NaN()}) {
+    const auto wild = dir / "wild_leaf.dat";
+    dlib::matrix<float, 0, 1> shape(2 * kNumLandmarks), leaf(2 * kNumLandmarks);
+    shape = 0.5;
+    leaf = 0;
+    leaf(7) = increment;
+    std::vector<std::vector<dlib::impl::regression_tree>> forests(1, std::vector<dlib::impl::regression_tree>(1));
+    forests[0][0].splits.push_back({0, 0, 0.f});
+    forests[0][0].leaf_values.assign(2, leaf);
+    const std::vector<std::vector<dlib::vector<float, 2>>> pixels(1, {dlib::vector<float, 2>(0.5f, 0.5f)});
+    dlib::serialize(wild.string()) << dlib::shape_predictor(shape, forests, pixels);
+    try {
+      load_predictor_file(wild);
+      ADD_FAILURE() << "a leaf increment of " << increment << " was accepted";
+    } catch (const CommandError& e) {
+      EXPECT_EQ(e.exit_code(), kExitDataError);
+      EXPECT_NE(std::string(e.what()).find("leaf increment"), std::string::npos) << e.what();
+    }
   }
   std::filesystem::remove_all(dir);
 }
