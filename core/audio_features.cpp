@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -32,24 +34,38 @@ const char* invalid_feature_settings(const AudioFeatureSettings& s) {
 struct AudioFeatures::Aubio {
   aubio_pvoc_t* pvoc = nullptr;
   aubio_filterbank_t* bank = nullptr;
-  aubio_dct_t* dct = nullptr;
   fvec_t* hop = nullptr;
   cvec_t* spectrum = nullptr;
   fvec_t* bands = nullptr;
-  fvec_t* cepstra = nullptr;
+  // The first `cepstra` rows of the orthonormal DCT-II over the bands, row after row. aubio's
+  // own aubio_dct_do computes the same transform (its header: scipy's dct(x, norm='ortho')),
+  // but Debian builds it on FFTW, whose DCT-II allocates a buffer on every call; a band count
+  // of at most 64 needs no fast transform, and this product allocates nothing.
+  std::vector<float> dct;
 
   ~Aubio() {
-    if (cepstra) del_fvec(cepstra);
     if (bands) del_fvec(bands);
     if (spectrum) del_cvec(spectrum);
     if (hop) del_fvec(hop);
-    if (dct) del_aubio_dct(dct);
     if (bank) del_aubio_filterbank(bank);
     if (pvoc) del_aubio_pvoc(pvoc);
   }
 };
 
 namespace {
+
+/// Rows 0..rows-1 of the orthonormal DCT-II of size n: X_k = s_k sum_i x_i cos(pi k (2i + 1) / 2n),
+/// s_0 = sqrt(1/n), s_k = sqrt(2/n) (Ahmed, Natarajan and Rao 1974; scipy's norm='ortho').
+std::vector<float> dct_ii_rows(int rows, int n) {
+  std::vector<float> m(static_cast<std::size_t>(rows) * static_cast<std::size_t>(n));
+  for (int k = 0; k < rows; ++k) {
+    const double scale = std::sqrt((k == 0 ? 1.0 : 2.0) / n);
+    for (int i = 0; i < n; ++i)
+      m[static_cast<std::size_t>(k * n + i)] =
+          static_cast<float>(scale * std::cos(std::numbers::pi * k * (2 * i + 1) / (2.0 * n)));
+  }
+  return m;
+}
 
 std::unique_ptr<AudioFeatures::Aubio> make_aubio(const AudioFeatureSettings& settings) {
   auto made = std::make_unique<AudioFeatures::Aubio>();
@@ -58,13 +74,12 @@ std::unique_ptr<AudioFeatures::Aubio> make_aubio(const AudioFeatureSettings& set
   AudioFeatures::Aubio& a = *made;
   a.pvoc = new_aubio_pvoc(window, hop);
   a.bank = new_aubio_filterbank(bands, window);
-  a.dct = new_aubio_dct(bands);
   a.hop = new_fvec(hop);
   a.spectrum = new_cvec(window);
   a.bands = new_fvec(bands);
-  a.cepstra = new_fvec(bands);
-  if (!a.pvoc || !a.bank || !a.dct || !a.hop || !a.spectrum || !a.bands || !a.cepstra)
-    throw std::runtime_error("audio features: aubio cannot make its phase vocoder, filter bank or DCT");
+  if (!a.pvoc || !a.bank || !a.hop || !a.spectrum || !a.bands)
+    throw std::runtime_error("audio features: aubio cannot make its phase vocoder or filter bank");
+  a.dct = dct_ii_rows(settings.cepstra, settings.mel_bands);
   if (aubio_filterbank_set_mel_coeffs(a.bank, static_cast<smpl_t>(settings.sample_rate), settings.min_hz,
                                       settings.max_hz) != 0)
     throw std::runtime_error("audio features: aubio cannot make the mel filter bank");
@@ -112,8 +127,12 @@ void AudioFeatures::analyse(FeatureFrame& frame) {
   const int bands = settings_.mel_bands;
   for (int b = 0; b < bands; ++b) a.bands->data[b] = std::log(std::max(a.bands->data[b], kMinBandEnergy));
   if (settings_.cepstra > 0) {
-    aubio_dct_do(a.dct, a.bands, a.cepstra);
-    std::copy_n(a.cepstra->data, settings_.cepstra, frame.values.begin());
+    for (int c = 0; c < settings_.cepstra; ++c) {
+      const float* row = &a.dct[static_cast<std::size_t>(c * bands)];
+      double sum = 0;
+      for (int b = 0; b < bands; ++b) sum += static_cast<double>(row[b]) * a.bands->data[b];
+      frame.values[static_cast<std::size_t>(c)] = static_cast<float>(sum);
+    }
   } else {
     std::copy_n(a.bands->data, bands, frame.values.begin());
   }

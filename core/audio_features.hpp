@@ -1,8 +1,9 @@
 // Feature frames of speech for the voice model (docs/method.md 11), from aubio: every hop
 // (10 ms by default) the newest window of samples (32 ms, Hann) goes through aubio's phase
 // vocoder (FFT magnitudes), a mel filter bank (triangular bands evenly spaced on the mel scale,
-// Slaney's Auditory Toolbox), the log of the band energies and, for cepstra, aubio's DCT-II:
-// MFCCs as Davis and Mermelstein (1980) defined them. The frame's level (dB of its mean square,
+// Slaney's Auditory Toolbox), the log of the band energies and, for cepstra, the orthonormal
+// DCT-II aubio defines (computed here as a small matrix product: aubio's runs on FFTW and
+// allocates per call): MFCCs as Davis and Mermelstein (1980) defined them. The frame's level (dB of its mean square,
 // over the hop) goes beside them for voice activity detection.
 //
 // Fixed-size and allocation-free once constructed: push() only fills preallocated buffers.

@@ -1,6 +1,6 @@
 // Counts heap allocations for the tests that prove a per-frame path allocates nothing.
 // Linking tests/allocation_counter.cpp into a test binary replaces the C allocator's entry
-// points (malloc, calloc, realloc, posix_memalign, aligned_alloc) with counting versions;
+// points (malloc, calloc, realloc, posix_memalign, aligned_alloc, memalign) with counting versions;
 // operator new, Eigen and OpenCV all allocate through them. Under AddressSanitizer or
 // ThreadSanitizer, whose allocator malloc is, the sanitizer's allocation hook counts instead.
 #pragma once

@@ -102,7 +102,18 @@ signal = "open"
   const long late = *std::max_element(rss_kib.end() - 5, rss_kib.end());
   RecordProperty("rss_early_kib", static_cast<int>(early));
   RecordProperty("rss_late_kib", static_cast<int>(late));
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define LIPDRIVE_SOAK_UNDER_ASAN 1
+#endif
+#endif
+#ifdef LIPDRIVE_SOAK_UNDER_ASAN
+  // AddressSanitizer holds freed memory back (its quarantine, 256 MB) to catch uses after free,
+  // so the daemon's RSS grows by that much without a leak; LeakSanitizer checks leaks at exit.
+  fmt::print("soak: RSS {} -> {} KiB not checked under AddressSanitizer (its quarantine)\n", early, late);
+#else
   EXPECT_LT(late - early, 2048) << "RSS grew from " << early << " KiB to " << late << " KiB";
+#endif
 
   // Every fault happened and the pipeline came through them: frames kept flowing to the end.
   const long processed = stat(log, "processed ");
