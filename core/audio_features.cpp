@@ -37,11 +37,6 @@ struct AudioFeatures::Aubio {
   fvec_t* hop = nullptr;
   cvec_t* spectrum = nullptr;
   fvec_t* bands = nullptr;
-  // The first `cepstra` rows of the orthonormal DCT-II over the bands, row after row. aubio's
-  // own aubio_dct_do computes the same transform (its header: scipy's dct(x, norm='ortho')),
-  // but Debian builds it on FFTW, whose DCT-II allocates a buffer on every call; a band count
-  // of at most 64 needs no fast transform, and this product allocates nothing.
-  std::vector<float> dct;
 
   ~Aubio() {
     if (bands) del_fvec(bands);
@@ -54,8 +49,11 @@ struct AudioFeatures::Aubio {
 
 namespace {
 
-/// Rows 0..rows-1 of the orthonormal DCT-II of size n: X_k = s_k sum_i x_i cos(pi k (2i + 1) / 2n),
-/// s_0 = sqrt(1/n), s_k = sqrt(2/n) (Ahmed, Natarajan and Rao 1974; scipy's norm='ortho').
+/// Rows 0..rows-1 of the orthonormal DCT-II of size n (Ahmed, Natarajan and Rao 1974):
+/// X_k = s_k sum_i x_i cos(pi k (2i + 1) / 2n), s_0 = sqrt(1/n), s_k = sqrt(2/n). It is the
+/// transform aubio_dct_do computes (its header: scipy's dct(x, norm='ortho')), but Debian
+/// builds aubio's on FFTW, whose DCT-II allocates a buffer on every call; at most 64 bands
+/// need no fast transform, and a matrix product allocates nothing.
 std::vector<float> dct_ii_rows(int rows, int n) {
   std::vector<float> m(static_cast<std::size_t>(rows) * static_cast<std::size_t>(n));
   for (int k = 0; k < rows; ++k) {
@@ -79,7 +77,6 @@ std::unique_ptr<AudioFeatures::Aubio> make_aubio(const AudioFeatureSettings& set
   a.bands = new_fvec(bands);
   if (!a.pvoc || !a.bank || !a.hop || !a.spectrum || !a.bands)
     throw std::runtime_error("audio features: aubio cannot make its phase vocoder or filter bank");
-  a.dct = dct_ii_rows(settings.cepstra, settings.mel_bands);
   if (aubio_filterbank_set_mel_coeffs(a.bank, static_cast<smpl_t>(settings.sample_rate), settings.min_hz,
                                       settings.max_hz) != 0)
     throw std::runtime_error("audio features: aubio cannot make the mel filter bank");
@@ -91,6 +88,7 @@ std::unique_ptr<AudioFeatures::Aubio> make_aubio(const AudioFeatureSettings& set
 AudioFeatures::AudioFeatures(const AudioFeatureSettings& settings) : settings_(settings) {
   if (const std::string problem = invalid_feature_settings(settings); !problem.empty())
     throw std::invalid_argument("audio features: " + problem);
+  dct_ = dct_ii_rows(settings_.cepstra, settings_.mel_bands);
   aubio_ = make_aubio(settings_);
 }
 
@@ -128,7 +126,7 @@ void AudioFeatures::analyse(FeatureFrame& frame) {
   for (int b = 0; b < bands; ++b) a.bands->data[b] = std::log(std::max(a.bands->data[b], kMinBandEnergy));
   if (settings_.cepstra > 0) {
     for (int c = 0; c < settings_.cepstra; ++c) {
-      const float* row = &a.dct[static_cast<std::size_t>(c * bands)];
+      const float* row = &dct_[static_cast<std::size_t>(c * bands)];
       double sum = 0;
       for (int b = 0; b < bands; ++b) sum += static_cast<double>(row[b]) * a.bands->data[b];
       frame.values[static_cast<std::size_t>(c)] = static_cast<float>(sum);

@@ -3,8 +3,8 @@
 // vocoder (FFT magnitudes), a mel filter bank (triangular bands evenly spaced on the mel scale,
 // Slaney's Auditory Toolbox), the log of the band energies and, for cepstra, the orthonormal
 // DCT-II aubio defines (computed here as a small matrix product: aubio's runs on FFTW and
-// allocates per call): MFCCs as Davis and Mermelstein (1980) defined them. The frame's level (dB of its mean square,
-// over the hop) goes beside them for voice activity detection.
+// allocates per call): MFCCs as Davis and Mermelstein (1980) defined them. The frame's level
+// (dB of its mean square, over the hop) goes beside them for voice activity detection.
 //
 // Fixed-size and allocation-free once constructed: push() only fills preallocated buffers.
 // Thread model: one owner thread.
@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <vector>
 
 
 namespace lipdrive {
@@ -72,6 +73,9 @@ class AudioFeatures {
   void analyse(FeatureFrame& frame);
 
   AudioFeatureSettings settings_;
+  // The first settings_.cepstra rows of the orthonormal DCT-II over the mel bands, row after
+  // row (audio_features.cpp: why not aubio's).
+  std::vector<float> dct_;
   std::unique_ptr<Aubio> aubio_;
   int filled_ = 0;  // samples of the current hop so far
   double hop_energy_ = 0;

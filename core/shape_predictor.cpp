@@ -588,9 +588,8 @@ void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2
         for (std::size_t byte = 0; byte < sizeof(ShapePredictorData::Leaf); byte += 64) __builtin_prefetch(ahead + byte);
         __builtin_prefetch(ahead + sizeof(ShapePredictorData::Leaf) - 1);  // a leaf starts anywhere in a line
       }
-      const ShapePredictorData::Leaf& increment = leaf(t);
-      for (int k = 0; k < kShapeSize; ++k)
-        shape_[k] += static_cast<float>(256 * increment.high[k] + increment.low[k]) * increment.scale;
+      const ShapePredictorData::Leaf& increments = leaf(t);
+      for (int k = 0; k < kShapeSize; ++k) shape_[k] += increments.increment(k);
     }
   }
   const double box_w = static_cast<double>(box.right - box.left);

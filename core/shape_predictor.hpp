@@ -124,6 +124,8 @@ class ShapePredictorData {
     float scale;
     std::int16_t high[kShapeSize];
     std::uint8_t low[kShapeSize];
+
+    float increment(int k) const { return static_cast<float>(256 * high[k] + low[k]) * scale; }
   };
 
  private:

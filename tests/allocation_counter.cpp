@@ -1,4 +1,5 @@
 #include "allocation_counter.hpp"
+#include "sanitizer_build.hpp"
 
 #include <atomic>
 #include <cerrno>
@@ -18,15 +19,7 @@ long allocation_count() { return g_count.load(); }
 void count_allocations_on_this_thread(bool on) { t_counting = on; }
 }  // namespace lipdrive::test
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define LIPDRIVE_SANITIZER_ALLOCATOR 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define LIPDRIVE_SANITIZER_ALLOCATOR 1
-#endif
-#endif
-
-#ifdef LIPDRIVE_SANITIZER_ALLOCATOR
+#if defined(LIPDRIVE_ADDRESS_SANITIZER) || defined(LIPDRIVE_THREAD_SANITIZER)
 // Under AddressSanitizer or ThreadSanitizer (scripts/sanitize.sh) the sanitizer's allocator
 // is malloc and must stay so; its allocation hook, called for every allocation it makes
 // (malloc family and operator new alike), counts instead.

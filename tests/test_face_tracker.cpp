@@ -324,18 +324,34 @@ TEST(ShapePredictor, NumbersAreRangeCheckedNotOverflowed) {
       << error_of(extreme_float.str());
 }
 
+// A real dlib shape predictor file of one tree of depth 1 over `mean_shape`, both of whose
+// leaves are `leaf`.
+void write_one_tree_predictor(const std::filesystem::path& path, const dlib::matrix<float, 0, 1>& mean_shape,
+                              const dlib::matrix<float, 0, 1>& leaf) {
+  std::vector<std::vector<dlib::impl::regression_tree>> forests(1, std::vector<dlib::impl::regression_tree>(1));
+  forests[0][0].splits.push_back({0, 0, 0.f});
+  forests[0][0].leaf_values.assign(2, leaf);
+  const std::vector<std::vector<dlib::vector<float, 2>>> pixels(1, {dlib::vector<float, 2>(0.5f, 0.5f)});
+  dlib::serialize(path.string()) << dlib::shape_predictor(mean_shape, forests, pixels);
+}
+
+// Loading `path` is a data error (exit 65) whose message holds `text`.
+void expect_data_error(const std::filesystem::path& path, const std::string& text) {
+  try {
+    load_predictor_file(path);
+    ADD_FAILURE() << path << " was accepted";
+  } catch (const CommandError& e) {
+    EXPECT_EQ(e.exit_code(), kExitDataError) << path;
+    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+  }
+}
+
 TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
   const auto dir = std::filesystem::temp_directory_path() / "lipdrive_test_predictor";
   std::filesystem::create_directories(dir);
   const auto text = dir / "notes.dat";
   std::ofstream(text) << "this is not a predictor\n";
-  try {
-    load_predictor_file(text);
-    FAIL() << "a text file was accepted";
-  } catch (const CommandError& e) {
-    EXPECT_EQ(e.exit_code(), kExitDataError);
-    EXPECT_NE(std::string(e.what()).find(text.string()), std::string::npos) << e.what();
-  }
+  expect_data_error(text, text.string());
   try {
     load_predictor_file(dir / "missing.dat");
     FAIL() << "a missing file was accepted";
@@ -345,23 +361,10 @@ TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
   }
   // A real dlib shape predictor with 5 landmarks, not 68.
   const auto five = dir / "five.dat";
-  {
-    dlib::matrix<float, 0, 1> shape(10);
-    shape = 0.5;
-    std::vector<std::vector<dlib::impl::regression_tree>> forests(1, std::vector<dlib::impl::regression_tree>(1));
-    forests[0][0].splits.push_back({0, 0, 0.f});
-    forests[0][0].leaf_values.assign(2, shape);
-    const std::vector<std::vector<dlib::vector<float, 2>>> pixels(1, {dlib::vector<float, 2>(0.5f, 0.5f)});
-    const dlib::shape_predictor predictor(shape, forests, pixels);
-    dlib::serialize(five.string()) << predictor;
-  }
-  try {
-    load_predictor_file(five);
-    FAIL() << "a 5-landmark predictor was accepted";
-  } catch (const CommandError& e) {
-    EXPECT_EQ(e.exit_code(), kExitDataError);
-    EXPECT_NE(std::string(e.what()).find("5 landmarks"), std::string::npos) << e.what();
-  }
+  dlib::matrix<float, 0, 1> five_points(10);
+  five_points = 0.5;
+  write_one_tree_predictor(five, five_points, five_points);
+  expect_data_error(five, "5 landmarks");
   // A 68-point predictor whose leaf moves the shape by a billion box sizes (or by NaN): its
   // increments cannot be stored in 24 bits, and no real predictor has them.
   for (const float increment : {1e9f, std::numeric_limits<float>::quiet_NaN()}) {
@@ -370,18 +373,8 @@ TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
     shape = 0.5;
     leaf = 0;
     leaf(7) = increment;
-    std::vector<std::vector<dlib::impl::regression_tree>> forests(1, std::vector<dlib::impl::regression_tree>(1));
-    forests[0][0].splits.push_back({0, 0, 0.f});
-    forests[0][0].leaf_values.assign(2, leaf);
-    const std::vector<std::vector<dlib::vector<float, 2>>> pixels(1, {dlib::vector<float, 2>(0.5f, 0.5f)});
-    dlib::serialize(wild.string()) << dlib::shape_predictor(shape, forests, pixels);
-    try {
-      load_predictor_file(wild);
-      ADD_FAILURE() << "a leaf increment of " << increment << " was accepted";
-    } catch (const CommandError& e) {
-      EXPECT_EQ(e.exit_code(), kExitDataError);
-      EXPECT_NE(std::string(e.what()).find("leaf increment"), std::string::npos) << e.what();
-    }
+    write_one_tree_predictor(wild, shape, leaf);
+    expect_data_error(wild, "leaf increment");
   }
   std::filesystem::remove_all(dir);
 }

@@ -4,6 +4,7 @@
 // every rate is checked per second of the soak.
 #include "daemon_process.hpp"
 #include "fixture_paths.hpp"
+#include "sanitizer_build.hpp"
 
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -102,12 +103,7 @@ signal = "open"
   const long late = *std::max_element(rss_kib.end() - 5, rss_kib.end());
   RecordProperty("rss_early_kib", static_cast<int>(early));
   RecordProperty("rss_late_kib", static_cast<int>(late));
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define LIPDRIVE_SOAK_UNDER_ASAN 1
-#endif
-#endif
-#ifdef LIPDRIVE_SOAK_UNDER_ASAN
+#ifdef LIPDRIVE_ADDRESS_SANITIZER
   // AddressSanitizer holds freed memory back (its quarantine, 256 MB) to catch uses after free,
   // so the daemon's RSS grows by that much without a leak; LeakSanitizer checks leaks at exit.
   fmt::print("soak: RSS {} -> {} KiB not checked under AddressSanitizer (its quarantine)\n", early, late);
