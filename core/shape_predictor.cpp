@@ -25,6 +25,15 @@ constexpr int kMaxTreeDepth = 8;  // leaf indices are stored in 8 bits
 // The largest leaf increment either file may hold, in box units (dlib's 68-point model's is
 // 0.07): with it the shape stays within the range where its pixel positions are integers.
 constexpr float kMaxLeafIncrement = 16.0f;
+// The largest |coordinate| of the mean shape and of a feature pixel's offset from its anchor,
+// in box units (dlib's 68-point model's lie within 0..1 and -0.3..0.3): with the leaves' bound
+// the shape and its pixel positions stay finite and far inside the range of a long.
+constexpr float kMaxShapeCoordinate = 16.0f;
+
+bool within_shape_range(std::span<const float> values) {
+  return std::all_of(values.begin(), values.end(), [](float v) { return std::abs(v) <= kMaxShapeCoordinate; });
+}
+constexpr const char* kShapeRangeError = "a mean shape or feature pixel offset that is not within 16 box sizes";
 constexpr float kLeafSteps = (1 << 23) - 1;  // a leaf's largest |increment| as a 24-bit integer
 
 struct DlibFields {
@@ -185,8 +194,11 @@ void check_fields(const DlibFields& f) {
   const int depth = static_cast<int>(std::log2(static_cast<double>(splits + 1)));
   if (splits == 0 || (std::size_t{1} << depth) != splits + 1 || depth > kMaxTreeDepth)
     fail("trees are not complete binary trees of depth 1.." + std::to_string(kMaxTreeDepth));
+  if (!within_shape_range(std::span(&f.initial_shape(0), f.initial_shape.size()))) fail(kShapeRangeError);
   for (std::size_t c = 0; c < f.forests.size(); ++c) {
     const std::size_t features = f.deltas[c].size();
+    for (const auto& delta : f.deltas[c])
+      if (!within_shape_range(std::array{delta.x(), delta.y()})) fail(kShapeRangeError);
     if (f.anchor_idx[c].size() != features || features == 0 || features > 65535)
       fail("cascade " + std::to_string(c) + ": bad feature pixel table");
     for (unsigned long a : f.anchor_idx[c])
@@ -480,10 +492,7 @@ ShapePredictorData ShapePredictorData::read_compact(std::span<const std::uint8_t
       if (d.splits_[i].first >= features || d.splits_[i].second >= features || !std::isfinite(d.splits_[i].threshold))
         fail("split " + std::to_string(i) + " refers to a missing feature pixel");
   }
-  const auto finite = [](std::span<const float> v) {
-    return std::all_of(v.begin(), v.end(), [](float x) { return std::isfinite(x); });
-  };
-  if (!finite(d.initial_shape_) || !finite(d.delta_)) fail("non-finite values");
+  if (!within_shape_range(d.initial_shape_) || !within_shape_range(d.delta_)) fail(kShapeRangeError);
   for (const Leaf& leaf : d.leaf_increments_)
     if (!(leaf.scale >= 0 && leaf.scale <= kMaxLeafIncrement / kLeafSteps)) fail("a leaf scale out of range");
   d.max_features_ = largest_cascade(d.cascade_first_feature_);
@@ -540,10 +549,12 @@ void ShapePredictor::read_feature_pixels(const cv::Mat& gray, const FaceBox& box
     const int a = d.anchor_[f];
     const float u = tform(0, 0) * dx + tform(0, 1) * dy + shape_[2 * a];
     const float v = tform(1, 0) * dx + tform(1, 1) * dy + shape_[2 * a + 1];
-    const long x = static_cast<long>(std::floor(box_w * u + static_cast<double>(box.left) + 0.5));
-    const long y = static_cast<long>(std::floor(box_h * v + static_cast<double>(box.top) + 0.5));
+    // Compared before the conversion to an integer, which only an in-range value may take.
+    const double x = std::floor(box_w * u + static_cast<double>(box.left) + 0.5);
+    const double y = std::floor(box_h * v + static_cast<double>(box.top) + 0.5);
     const bool inside = x >= 0 && y >= 0 && x < gray.cols && y < gray.rows;
-    feature_pixels_[i] = inside ? static_cast<float>(gray.ptr<std::uint8_t>(static_cast<int>(y))[x]) : 0.0f;
+    feature_pixels_[i] =
+        inside ? static_cast<float>(gray.ptr<std::uint8_t>(static_cast<int>(y))[static_cast<int>(x)]) : 0.0f;
   }
 }
 

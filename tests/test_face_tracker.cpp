@@ -3,6 +3,7 @@
 #include "allocation_counter.hpp"
 #include "build_paths.hpp"
 #include "core/face_check.hpp"
+#include "core/checksum.hpp"
 #include "core/face_tracker.hpp"
 #include "core/lip_contact.hpp"
 #include "core/shape_predictor.hpp"
@@ -26,9 +27,11 @@
 #include <atomic>
 #include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <span>
 #include <sstream>
 #include <vector>
 
@@ -236,6 +239,14 @@ TEST(ShapePredictor, DamagedCompactFilesAreErrors) {
   auto trees = good;
   trees[26] ^= 0x01;  // the tree count: the arrays no longer add up to the file
   expect_error(trees, "header says", "a wrong tree count");
+  // A forged file, its checksum made to match: the mean shape's first x (the payload's first
+  // float, core/shape_predictor.hpp) a billion box sizes away.
+  auto forged = good;
+  const float far = 1e9f;
+  std::memcpy(forged.data() + 64, &far, sizeof far);
+  const std::uint32_t crc = crc32(std::span(forged).subspan(64));
+  std::memcpy(forged.data() + 48, &crc, sizeof crc);
+  expect_error(forged, "mean shape", "a mean shape far outside the box");
   std::filesystem::remove_all(dir);
 }
 
@@ -376,6 +387,14 @@ TEST(ShapePredictor, RejectsFilesThatAreNotPredictors) {
     write_one_tree_predictor(wild, shape, leaf);
     expect_data_error(wild, "leaf increment");
   }
+  // One whose mean shape lies a billion box sizes away: its pixel positions would overflow.
+  dlib::matrix<float, 0, 1> far_shape(2 * kNumLandmarks), no_move(2 * kNumLandmarks);
+  far_shape = 0.5;
+  far_shape(3) = 1e9f;
+  no_move = 0;
+  const auto far = dir / "far_shape.dat";
+  write_one_tree_predictor(far, far_shape, no_move);
+  expect_data_error(far, "mean shape");
   std::filesystem::remove_all(dir);
 }
 
