@@ -6,6 +6,7 @@
 #include "allocation_counter.hpp"
 #include "build_paths.hpp"
 #include "daemon_process.hpp"
+#include "drivers/cpu_latency.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
@@ -32,6 +33,7 @@
 #include <iterator>
 #include <map>
 #include <new>
+#include <optional>
 #include <pthread.h>
 #include <sched.h>
 #include <sstream>
@@ -289,6 +291,25 @@ TEST_F(PipelineTest, FramePathThreadsAreNamedAndRealTimeWhenAskedAndAllowed) {
     ASSERT_TRUE(policies.contains(name)) << name;
     EXPECT_EQ(policies.at(name), expected) << name;
   }
+}
+
+// [scheduling] cpu_latency_us: the kernel keeps the CPUs' wake-up latency at most the request
+// while the frame path runs, and as it was once the pipeline has stopped.
+TEST_F(PipelineTest, HoldsTheCpuLatencyRequestWhileTheFramePathRuns) {
+  const std::optional<std::int32_t> before = CpuLatencyRequest::current_target();
+  if (!before || ::access(CpuLatencyRequest::kDevice, W_OK) != 0)
+    GTEST_SKIP() << CpuLatencyRequest::kDevice << " cannot be read and written here";
+  PipelineSettings settings;
+  settings.cpu_latency_us = 2;
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), settings, control);
+  pipeline.start();
+  wait_for([&] { return pipeline.stats().processed >= 5; }, 60s);
+  const std::optional<std::int32_t> running = CpuLatencyRequest::current_target();
+  pipeline.stop();
+  ASSERT_TRUE(running);
+  EXPECT_LE(*running, 2);
+  EXPECT_EQ(CpuLatencyRequest::current_target(), before);
 }
 
 TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {

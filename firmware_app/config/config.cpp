@@ -262,6 +262,7 @@ void read_status(Section status, Config& config) {
 void read_scheduling(Section scheduling, Config& config) {
   Config::Scheduling& s = config.scheduling;
   s.realtime_priority = scheduling.integer("realtime_priority", s.realtime_priority, 0, 99);
+  s.cpu_latency_us = scheduling.integer("cpu_latency_us", s.cpu_latency_us, -1, 10'000);
   scheduling.reject_unknown_keys();
 }
 

@@ -139,6 +139,7 @@ struct Config {
 
   struct Scheduling {
     int realtime_priority = 0;  // the frame path's threads under SCHED_FIFO, 1..99; 0 = off
+    int cpu_latency_us = -1;    // PM QoS: the CPUs' wake-up latency while the frame path runs; -1 = the system's
   } scheduling;
 
   struct Performer {

@@ -40,6 +40,7 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
   settings.safety = config_.safety;
   settings.neutral_frames = config_.performer.neutral_frames;
   settings.realtime_priority = config_.scheduling.realtime_priority;
+  settings.cpu_latency_us = config_.scheduling.cpu_latency_us;
   settings.model_mismatch = model_mismatch(config_, profile_, files);
   settings.voice_crossfade = std::chrono::milliseconds(config_.voice.crossfade_ms);
   settings.voice_timeout = std::chrono::milliseconds(config_.voice.audio_timeout_ms);

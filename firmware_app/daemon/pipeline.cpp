@@ -61,6 +61,14 @@ void Pipeline::start() {
                  refused, priority);
   else if (priority > 0)
     spdlog::info("the frame path runs under SCHED_FIFO at priority {}", priority);
+  if (settings_.cpu_latency_us >= 0) {
+    if (const std::string why = cpu_latency_.request(settings_.cpu_latency_us); !why.empty())
+      spdlog::warn("{}; the CPUs keep the system's idle states (the service needs write access to {}, "
+                   "docs/packaging.md)",
+                   why, CpuLatencyRequest::kDevice);
+    else
+      spdlog::info("the CPUs wake from idle within {} us while the frame path runs", settings_.cpu_latency_us);
+  }
 }
 
 void Pipeline::stop() {
@@ -72,6 +80,7 @@ void Pipeline::stop() {
   if (side_) side_->stop();
   stop_outputs_ = true;
   if (output_thread_.joinable()) output_thread_.join();
+  cpu_latency_.release();
 }
 
 // ---------------------------------------------------------------- processing thread

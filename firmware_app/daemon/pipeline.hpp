@@ -24,6 +24,7 @@
 #include "core/calibration.hpp"
 #include "core/drive_channels.hpp"
 #include "core/drive_source.hpp"
+#include "drivers/cpu_latency.hpp"
 #include "drivers/frame_source.hpp"
 #include "firmware_app/daemon/capture.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
@@ -61,6 +62,9 @@ struct PipelineSettings {
   /// The frame path's threads (capture, side capture, processing, output) under SCHED_FIFO at
   /// this priority, 1..99; 0 = the normal scheduler.
   int realtime_priority = 0;
+  /// While the frame path runs, the CPUs wake from idle within this many microseconds
+  /// (drivers/cpu_latency.hpp); -1 = the system's idle states.
+  int cpu_latency_us = -1;
   bool model_mismatch = false;  // reported in the status word (kStatusModelMismatch)
   /// [voice]: the cross-fade between video and voice; no sound for voice_timeout: the voice is gone.
   std::chrono::milliseconds voice_crossfade{150}, voice_timeout{200};
@@ -193,6 +197,7 @@ class Pipeline {
   std::atomic<std::int64_t> stop_ns_{0};
 
   std::thread processing_thread_, output_thread_;
+  CpuLatencyRequest cpu_latency_;  // held from start() to stop()
 };
 
 }  // namespace lipdrive
