@@ -25,8 +25,9 @@ constexpr int kMaxTreeDepth = 8;  // leaf indices are stored in 8 bits
 // The largest leaf increment either file may hold, in box units (dlib's 68-point model's is
 // 0.07): with it the shape stays within the range where its pixel positions are integers.
 constexpr float kMaxLeafIncrement = 16.0f;
+constexpr float kLeafSteps = (1 << 23) - 1;  // a leaf's largest |increment| as a 24-bit integer
 // The largest |coordinate| of the mean shape and of a feature pixel's offset from its anchor,
-// in box units (dlib's 68-point model's lie within 0..1 and -0.3..0.3): with the leaves' bound
+// in box units (dlib's 68-point model's lie within 0.03..1.07 and -0.19..0.19): with the leaves' bound
 // the shape and its pixel positions stay finite and far inside the range of a long.
 constexpr float kMaxShapeCoordinate = 16.0f;
 
@@ -34,7 +35,6 @@ bool within_shape_range(std::span<const float> values) {
   return std::all_of(values.begin(), values.end(), [](float v) { return std::abs(v) <= kMaxShapeCoordinate; });
 }
 constexpr const char* kShapeRangeError = "a mean shape or feature pixel offset that is not within 16 box sizes";
-constexpr float kLeafSteps = (1 << 23) - 1;  // a leaf's largest |increment| as a 24-bit integer
 
 struct DlibFields {
   dlib::matrix<float, 0, 1> initial_shape;

@@ -22,8 +22,6 @@ class CpuLatencyRequest {
  public:
   static constexpr const char* kDevice = "/dev/cpu_dma_latency";
 
-  CpuLatencyRequest() = default;
-
   /// Requests a wake-up latency of at most `microseconds` (>= 0) until release() or
   /// destruction; `device` is the PM QoS file (a test passes its own). Returns "" when held,
   /// otherwise why not (the file and the reason); the system's latency then stays as it is.

@@ -2,8 +2,8 @@
 // acquire -> track -> lose -> re-acquire cycle.
 #include "allocation_counter.hpp"
 #include "build_paths.hpp"
-#include "core/face_check.hpp"
 #include "core/checksum.hpp"
+#include "core/face_check.hpp"
 #include "core/face_tracker.hpp"
 #include "core/lip_contact.hpp"
 #include "core/shape_predictor.hpp"
