@@ -463,8 +463,11 @@ TEST_F(PipelineTest, ACalibrateRequestRecentresTheProfileOnTheProcessingThread) 
   ASSERT_EQ(pipeline.recentred_profile(after), 1u) << "one request, one re-centred profile";
   // The frame in flight when the request lands (already counted as tracked) may be the first.
   EXPECT_GE(tracked_at_recentre, tracked_at_request + 10u - 1u) << "captured on the tracked frames after the request";
-  // The clip's mouth at rest is far below 0.6 of d, and each range moved with the rest point.
-  EXPECT_LT(after.rest.open, 0.4);
+  // Re-centred on the clip, not on the foreign profile's 0.6 of d: wherever the request lands,
+  // the median of 10 frames of the clip's `open` is at most 0.425 (204 windows of
+  // `lipdrive process build/fixtures/talking_face.avi`; 7 of them above 0.4). Each range moved
+  // with the rest point.
+  EXPECT_LT(after.rest.open, 0.5);
   EXPECT_NEAR(after.open.min, after.rest.open, 1e-12);
   EXPECT_NEAR(after.open.max - after.open.min, 0.4, 1e-9);
   EXPECT_NEAR(after.width.max - after.width.min, 0.6, 1e-9);
