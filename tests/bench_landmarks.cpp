@@ -22,6 +22,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <thread>
 #include <vector>
 
 namespace lipdrive {
@@ -116,6 +117,40 @@ void BM_LandmarksAgainstDlib(benchmark::State& state) {
 }
 
 BENCHMARK(BM_LandmarksAgainstDlib)->Unit(benchmark::kMicrosecond)->MinTime(2.0)->Repetitions(3);
+
+// Ours alone, each frame after a pause of the argument in µs: 0 is back to back, as
+// `lipdrive process` runs; 16667 is a 60 fps camera's period, as the daemon runs. The
+// difference is what the frame costs when the machine has done other things (or nothing)
+// since the last one: on a shared VM the predictor's ~4 MB per frame come from further away.
+void BM_LandmarksPaced(benchmark::State& state) {
+  if (!std::filesystem::exists(test::kClip)) {
+    state.SkipWithError("needs the generated clip");
+    return;
+  }
+  const Frames& clip = frames();
+  if (clip.gray.empty()) {
+    state.SkipWithError("no face in the generated clip");
+    return;
+  }
+  ShapePredictor ours(test::shared_predictor());
+  Landmarks2D landmarks;
+  std::vector<double> us;
+  us.reserve(static_cast<std::size_t>(state.max_iterations));
+  const auto pause = std::chrono::microseconds(state.range(0));
+  std::size_t frame = 0;
+  for (auto _ : state) {
+    if (pause.count() > 0) std::this_thread::sleep_for(pause);
+    const auto start = std::chrono::steady_clock::now();
+    ours.predict(clip.gray[frame], clip.boxes[frame], landmarks);
+    benchmark::DoNotOptimize(landmarks);
+    us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count());
+    frame = (frame + 1) % clip.gray.size();
+  }
+  state.counters["median_us"] = median(us);
+  state.counters["p99_us"] = quantile(us, 0.99);
+}
+
+BENCHMARK(BM_LandmarksPaced)->Arg(0)->Arg(16667)->Unit(benchmark::kMicrosecond)->Iterations(300)->Repetitions(2);
 
 }  // namespace
 }  // namespace lipdrive

@@ -225,6 +225,13 @@ TEST_F(PipelineTest, TracksTheTalkingFaceAndOutputsEndNeutral) {
   EXPECT_GE(stats.captured, stats.processed);
   EXPECT_GT(static_cast<double>(stats.tracked), 0.9 * static_cast<double>(stats.processed));
   EXPECT_GT(stats.processed_p99_ms, 0);
+  // Every stage of a frame lies inside its capture -> processed, so no quantile of a stage
+  // exceeds the same quantile of the whole (a bin of rounding allowed).
+  for (const PipelineStats::Stage& stage : {stats.hand_off, stats.landmarks, stats.fit, stats.measures}) {
+    EXPECT_GT(stage.median_ms, 0);
+    EXPECT_LE(stage.median_ms, stats.processed_median_ms + LatencyHistogram::kBinMs);
+    EXPECT_LE(stage.p99_ms, stats.processed_p99_ms + LatencyHistogram::kBinMs);
+  }
   EXPECT_GT(output.count, 0);
   EXPECT_GT(output.opened, 100) << "the open channel followed the talking mouth";
   EXPECT_FALSE(output.last.status & kStatusTracking) << "the last thing outputs see is the neutral pose";
@@ -528,6 +535,7 @@ TEST_F(RunTest, FramesAndStats) {
   EXPECT_EQ(daemon.wait(120s), 0) << daemon.log();
   const std::string log = daemon.log();
   EXPECT_THAT(log, HasSubstr("capture->processed latency: median"));
+  EXPECT_THAT(log, HasSubstr("capture->processed by stage (median / p99 ms, 0.05 ms bins): hand-off"));
   EXPECT_THAT(log, HasSubstr("fps:"));
   unsigned long processed = 0;
   const auto at = log.find("processed ");

@@ -184,6 +184,11 @@ void Daemon::print_stats() const {
              s.captured, s.processed, s.tracked, s.dropped, s.corrupt, s.lost_track, s.disconnects);
   fmt::print(stderr, "capture->processed latency: median {:.2f} ms, p99 {:.2f} ms\n", s.processed_median_ms,
              s.processed_p99_ms);
+  fmt::print(stderr,
+             "capture->processed by stage (median / p99 ms, 0.05 ms bins): hand-off {:.2f} / {:.2f}, landmarks {:.2f} / {:.2f}, "
+             "fit {:.2f} / {:.2f}, measures {:.2f} / {:.2f}\n",
+             s.hand_off.median_ms, s.hand_off.p99_ms, s.landmarks.median_ms, s.landmarks.p99_ms, s.fit.median_ms,
+             s.fit.p99_ms, s.measures.median_ms, s.measures.p99_ms);
   fmt::print(stderr, "capture->output latency: median {:.2f} ms, p99 {:.2f} ms\n", s.output_median_ms, s.output_p99_ms);
   for (const auto& output : outputs_) {
     if (const LatencyHistogram* wire = output->wire_latency(); wire && wire->count() > 0)

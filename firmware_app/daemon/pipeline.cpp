@@ -7,6 +7,7 @@
 #include <systemd/sd-daemon.h>
 
 #include <algorithm>
+#include <cmath>
 
 namespace lipdrive {
 namespace {
@@ -18,6 +19,11 @@ constexpr std::int64_t kCaptureStallNs = 1'000'000'000;
 double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
 std::int64_t frame_period_ns(double fps) { return static_cast<std::int64_t>(1e9 / (fps > 0 ? fps : 30.0)); }
+
+// A stage the frame processor did not reach this frame reads NaN and is not counted.
+void add_stage_time(LatencyHistogram& histogram, double ms) {
+  if (!std::isnan(ms)) histogram.add(std::llround(ms * 1e6));
+}
 
 }  // namespace
 
@@ -98,7 +104,11 @@ void Pipeline::processing_loop() {
 }
 
 void Pipeline::process(const CapturedFrame& frame) {
+  hand_off_time_.add(monotonic_ns() - frame.capture_time_ns);
   const FrameMeasurement& measurement = processor_->process(frame.gray);
+  add_stage_time(landmarks_time_, measurement.landmarks_ms);
+  add_stage_time(fit_time_, measurement.fit_ms);
+  add_stage_time(measures_time_, measurement.measures_ms);
   FrameResult result;
   result.sequence = frame.sequence;
   result.capture_time_ns = frame.capture_time_ns;
@@ -310,6 +320,13 @@ PipelineStats Pipeline::stats() const {
   s.voice_median_ms = voice_latency_.quantile_ms(0.5);
   s.voice_p99_ms = voice_latency_.quantile_ms(0.99);
   s.voice_frames = voice_latency_.count();
+  const auto stage = [](const LatencyHistogram& h) {
+    return PipelineStats::Stage{h.quantile_ms(0.5), h.quantile_ms(0.99)};
+  };
+  s.hand_off = stage(hand_off_time_);
+  s.landmarks = stage(landmarks_time_);
+  s.fit = stage(fit_time_);
+  s.measures = stage(measures_time_);
   const std::int64_t end_ns = stop_ns_ > 0 ? stop_ns_.load() : monotonic_ns();
   s.seconds = start_ns_ > 0 ? static_cast<double>(end_ns - start_ns_) / 1e9 : 0;
   s.connected = capture_.connected();

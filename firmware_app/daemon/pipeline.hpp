@@ -82,6 +82,12 @@ struct PipelineStats {
   /// outputs (serial and GPIO write inline); the model's look-ahead comes on top.
   double voice_median_ms = 0, voice_p99_ms = 0;
   std::uint64_t voice_frames = 0;  // drive frames the voice drove
+  /// Where capture -> processed goes, stage by stage (median, p99 in ms): the wait of a captured
+  /// frame for the processing thread, then the frame processor's three stages.
+  struct Stage {
+    double median_ms = 0, p99_ms = 0;
+  };
+  Stage hand_off, landmarks, fit, measures;
   double seconds = 0;              // since start()
   bool connected = true;           // the source currently delivers
 };
@@ -189,6 +195,7 @@ class Pipeline {
   std::uint32_t output_profile_version_ = 0;
   std::int64_t max_result_age_ns_;  // older results do not count as tracking
   LatencyHistogram processed_latency_, output_latency_, voice_latency_;
+  LatencyHistogram hand_off_time_, landmarks_time_, fit_time_, measures_time_;  // processing thread's stages
 
   std::atomic<std::uint64_t> processed_{0}, tracked_{0}, lost_track_{0};
   std::atomic<bool> finished_{false};
