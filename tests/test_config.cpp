@@ -66,6 +66,7 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   const Config config = load_config(file_);
   EXPECT_EQ(config.model.file, kModel);
   EXPECT_EQ(config.model.landmark_set, LandmarkSet::F4);
+  EXPECT_EQ(config.model.auto_identity_frames, 20);
   EXPECT_EQ(config.camera.sim.input, kClip);
   EXPECT_FALSE(config.camera.sim.real_time);
   EXPECT_TRUE(config.camera.sim.loop);
@@ -114,6 +115,8 @@ TEST_F(ConfigTest, OutOfRangeValuesNameTheRange) {
   EXPECT_THAT(error(), HasSubstr("key scheduling.realtime_priority: must be between 0 and 99, got 100"));
   write("", "[scheduling]\ncpu_latency_us = 20000");
   EXPECT_THAT(error(), HasSubstr("key scheduling.cpu_latency_us: must be between -1 and 10000, got 20000"));
+  write_text(fmt::format("[model]\nfile = \"{}\"\nauto_identity_frames = -1\n", kModel.string()));
+  EXPECT_THAT(error(), HasSubstr("key model.auto_identity_frames: must be between 0 and 3600, got -1"));
 }
 
 TEST_F(ConfigTest, MissingFilesAreNamed) {

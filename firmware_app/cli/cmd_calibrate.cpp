@@ -126,8 +126,11 @@ void run_calibrate(const CalibrateOptions& options) {
   const bool recording = !options.input.empty() || config.camera.type == Config::Camera::Type::kSim;
   auto source = open_source(config, options);
   LoadedFiles files;
-  // The mean face until the neutral capture gives the performer's identity.
-  auto processor = make_processor(config, files, PerformerProfile{});
+  // The mean face until the neutral capture gives the performer's identity (not one the
+  // processor would fit of its own on the way, [model] auto_identity_frames).
+  Config mean_face = config;
+  mean_face.model.auto_identity_frames = 0;
+  auto processor = make_processor(mean_face, files, PerformerProfile{});
   const bool fits_identity = files.model(config.model.file)->has_expressions();
   std::optional<PerformerIdentity> identity;
 

@@ -175,6 +175,8 @@ void read_model(Section model, Config& config) {
       model.one_of("landmark_set", std::string(landmark_set_name(config.model.landmark_set)), kLandmarkSetNames);
   config.model.landmark_set = *parse_landmark_set(set);
   config.model.iterations = model.integer("iterations", config.model.iterations, 1, 20);
+  config.model.auto_identity_frames =
+      model.integer("auto_identity_frames", config.model.auto_identity_frames, 0, CalibrationCapture::kCapacity);
   model.reject_unknown_keys();
 }
 

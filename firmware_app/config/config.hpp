@@ -110,6 +110,9 @@ struct Config {
     std::filesystem::path file = default_model_path();
     LandmarkSet landmark_set = kDefaultLandmarkSet;
     int iterations = FitSettings{}.iterations;
+    /// A model with expression shapes and no calibrated identity fits one on its first this many
+    /// tracked frames (AutoIdentity); 0 = the mean face until calibrated.
+    int auto_identity_frames = 20;
   } model;
 
   struct Tracker {

@@ -140,19 +140,22 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   fit.iterations = model.iterations;
   Eigen::VectorXf identity;
   FitOutput::Expressions rest = FitOutput::Expressions::Zero();
+  // Used only when no identity below is the performer's.
+  const AutoIdentity automatic{.model = loaded, .frames = model.auto_identity_frames};
   if (profile.identity && loaded->has_expressions()) {
     if (profile.identity->model_fingerprint == identity_fingerprint(*loaded)) {
       identity = profile.identity->vector(loaded->num_components());
       rest = profile.identity->rest_weights();
     } else
       spdlog::warn(
-          "performer {}: the profile's identity was fitted to another model than {}; fitting the mean face "
-          "until `lipdrive calibrate` runs with this model",
-          config.performer.name, model.file.string());
+          "performer {}: the profile's identity was fitted to another model than {}; fitting {} until "
+          "`lipdrive calibrate` runs with this model",
+          config.performer.name, model.file.string(),
+          automatic.frames > 0 ? "an identity of its own ([model] auto_identity_frames)" : "the mean face");
   }
   try {
     return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit, files.predictor(config.tracker.predictor),
-                                            identity, rest);
+                                            identity, rest, automatic);
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }

@@ -3,19 +3,46 @@
 #include "core/lip_contact.hpp"
 #include "drivers/clock.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <cmath>
 
 namespace lipdrive {
 
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                                std::shared_ptr<const ShapePredictorData> predictor, const Eigen::VectorXf& identity,
-                               const FitOutput::Expressions& rest)
-    : fitter_(model, set, settings, identity),
+                               const FitOutput::Expressions& rest, AutoIdentity automatic)
+    : set_(set),
+      settings_(settings),
+      automatic_(identity.size() == 0 && model.has_expressions() && automatic.model ? std::move(automatic)
+                                                                                    : AutoIdentity{}),
+      fitter_(model, set, settings, identity),
       arkit_(model.expression_names),
       reference_(mouth_reference(model, identity)),
       visemes_(make_viseme_solver(model, set)),
       tracker_(std::move(predictor)),
-      rest_(rest) {}
+      rest_(rest) {
+  identity_frames_.reserve(static_cast<std::size_t>(automatic_.frames));
+}
+
+// Calibration's two steps (cmd_calibrate.cpp) on the gathered frames, once: the identity
+// behind them (fit_identity), then its rest point (fit_rest_expression); every later frame is
+// fitted on them, warm-started afresh.
+void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
+  identity_frames_.push_back(landmarks);
+  if (static_cast<int>(identity_frames_.size()) < automatic_.frames) return;
+  const MorphableModel& model = *automatic_.model;
+  const Eigen::VectorXf identity = fit_identity(model, set_, identity_frames_);
+  rest_ = fit_rest_expression(model, set_, identity_frames_, identity, settings_);
+  fitter_ = Fitter(model, set_, settings_, identity);
+  reference_ = mouth_reference(model, identity);
+  fit_ = Fitter::initial_output();
+  spdlog::info("identity: fitted from the first {} tracked frames (no calibrated identity; `lipdrive calibrate` "
+               "fits the performer's own)",
+               identity_frames_.size());
+  automatic_ = AutoIdentity{};
+  identity_frames_ = {};
+}
 
 const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   FrameMeasurement& r = result_;
@@ -41,7 +68,11 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   // Visemes by the model's kind: from the ARKit weights of the expression fit, or by matching
   // the model's viseme poses; either moves sealed lips to B-M-P.
   if (arkit_.from_fit()) {
-    above_rest(fit_.expressions, rest_, above_rest_);
+    // Until an AutoIdentity is fitted the weights are the mean face's, not this face's: held at 0.
+    if (identity_pending())
+      above_rest_.setZero();
+    else
+      above_rest(fit_.expressions, rest_, above_rest_);
     ArkitWeights arkit;
     arkit_.from_expressions(std::span<const double>(above_rest_.data(), above_rest_.size()), arkit);
     r.visemes = visemes_from_arkit(arkit, r.measures.seal);
@@ -50,6 +81,7 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
     transfer_to_bilabial(r.visemes, r.measures.seal);
   }
   r.measures_ms = ms_since(start);
+  if (identity_pending()) gather_identity_frame(r.landmarks);  // for the frames after this one
   r.tracked = true;
   return r;
 }

@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <vector>
 
 namespace lipdrive {
 
@@ -28,23 +29,41 @@ struct FrameMeasurement {
   double landmarks_ms = 0, fit_ms = 0, measures_ms = 0;
 };
 
+/// Without a calibrated identity, a model with expression shapes can fit one itself: from its
+/// first `frames` tracked frames, taken as neutral as `lipdrive calibrate` takes its first ones,
+/// the identity and its rest point as calibration fits them (docs/arkit.md, "Without a
+/// calibration"). Until then the expression weights are the mean face's and read 0.
+struct AutoIdentity {
+  std::shared_ptr<const MorphableModel> model;  // the processor's model, kept for the one-time fit
+  int frames = 0;                               // 0 = off: the mean face until calibrated
+};
+
 class FrameProcessor {
  public:
   /// Throws std::invalid_argument when the model cannot be fitted with `set` (see Fitter).
   /// `identity`: the performer's, for a model with expression shapes (PerformerIdentity; empty =
   /// the mean face), `rest` its rest point (PerformerIdentity::rest_weights; zero = none): the
   /// ARKit weights and the visemes made from them are the fit's weights above_rest().
+  /// `automatic`: with an empty identity and a model with expression shapes, fit one (AutoIdentity).
   FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                  std::shared_ptr<const ShapePredictorData> predictor,
                  const Eigen::VectorXf& identity = Eigen::VectorXf(),
-                 const FitOutput::Expressions& rest = FitOutput::Expressions::Zero());
+                 const FitOutput::Expressions& rest = FitOutput::Expressions::Zero(), AutoIdentity automatic = {});
 
   /// Measures one luma frame (CV_8UC1). Allocation-free while the face stays tracked
-  /// (acquiring it runs dlib's detector, which allocates).
+  /// (acquiring it runs dlib's detector, which allocates; so does the one frame on which an
+  /// AutoIdentity is fitted).
   const FrameMeasurement& process(const cv::Mat& gray);
 
-  /// The next frame is unrelated to the last (independent images): detect afresh.
-  void forget() { tracker_.reset(); }
+  /// The next frame is unrelated to the last (independent images): detect afresh, and gather
+  /// an AutoIdentity's frames afresh (another image may be another face).
+  void forget() {
+    tracker_.reset();
+    identity_frames_.clear();
+  }
+
+  /// Whether an AutoIdentity is still gathering its frames (the fit is on the mean face).
+  bool identity_pending() const { return automatic_.frames > 0; }
 
   /// The last fit; its projected landmarks are the fitted model's in the last frame when that
   /// frame was tracked.
@@ -58,6 +77,12 @@ class FrameProcessor {
   }
 
  private:
+  void gather_identity_frame(const Landmarks2D& landmarks);
+
+  LandmarkSet set_;
+  FitSettings settings_;
+  AutoIdentity automatic_;                   // frames = 0 once fitted, or when off
+  std::vector<Landmarks2D> identity_frames_;  // reserved for automatic_.frames
   Fitter fitter_;
   ArkitMap arkit_;
   MouthReference reference_;
