@@ -31,15 +31,16 @@ FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, Fit
 void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
   identity_frames_.push_back(landmarks);
   if (static_cast<int>(identity_frames_.size()) < automatic_.frames) return;
+  const std::int64_t start = monotonic_ns();
   const MorphableModel& model = *automatic_.model;
   const Eigen::VectorXf identity = fit_identity(model, set_, identity_frames_);
   rest_ = fit_rest_expression(model, set_, identity_frames_, identity, settings_);
   fitter_ = Fitter(model, set_, settings_, identity);
   reference_ = mouth_reference(model, identity);
   fit_ = Fitter::initial_output();
-  spdlog::info("identity: fitted from the first {} tracked frames (no calibrated identity; `lipdrive calibrate` "
-               "fits the performer's own)",
-               identity_frames_.size());
+  spdlog::info("identity: fitted from the first {} tracked frames in {:.1f} ms (no calibrated identity; "
+               "`lipdrive calibrate` fits the performer's own)",
+               identity_frames_.size(), ms_since(start));
   automatic_ = AutoIdentity{};
   identity_frames_ = {};
 }
