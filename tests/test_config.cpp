@@ -65,7 +65,7 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
         "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0");
   const Config config = load_config(file_);
   EXPECT_EQ(config.model.file, kModel);
-  EXPECT_EQ(config.model.landmark_set, LandmarkSet::F4);
+  EXPECT_EQ(config.model.landmark_set, LandmarkSet::F5) << "the ICT head's, with the jaw line";
   EXPECT_EQ(config.model.auto_identity_frames, 20);
   EXPECT_EQ(config.camera.sim.input, kClip);
   EXPECT_FALSE(config.camera.sim.real_time);

@@ -260,7 +260,7 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   EXPECT_EQ(run.exit_code, 0) << run.output;
   ASSERT_TRUE(std::regex_search(run.output, m, std::regex(R"(processed (\d+))"))) << run.output;
   EXPECT_GE(std::stoi(m[1]), 30) << run.output;
-  EXPECT_THAT(run.output, HasSubstr(root.string() + "/usr/share/lipdrive/models/default.lpm")) << run.output;
+  EXPECT_THAT(run.output, HasSubstr(root.string() + "/usr/share/lipdrive/models/ict_face_light.lpm")) << run.output;
   EXPECT_THAT(run.output, HasSubstr("predictor " + compact_predictor.string())) << run.output;
   EXPECT_THAT(run.output, HasSubstr(root.string() + "/usr/share/lipdrive/talking_face.avi")) << run.output;
   EXPECT_THAT(run.output, HasSubstr(fmt::format("monitor: http://127.0.0.1:{}/", free_monitor_port))) << run.output;

@@ -84,7 +84,9 @@ TEST_F(ProcessTest, GeneratedTalkingFaceFollowsItsTruth) {
   LIPDRIVE_REQUIRE_BUILT(video);
   LIPDRIVE_REQUIRE_BUILT(truth_csv);
   const fs::path out = dir_ / "talking_face.csv";
-  const ProcessRun run = run_process(video.string() + " --out " + out.string(), dir_);
+  // The generated head, whose renders the clip and its truth are (the daemon's default is the ICT head).
+  const ProcessRun run = run_process(
+      fmt::format("{} --model {} --landmark-set F4 --out {}", video.string(), test::kModel.string(), out.string()), dir_);
   ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
 
   const CsvTable truth = read_csv_table(truth_csv);
@@ -127,10 +129,11 @@ TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   ASSERT_EQ(run_process(video.string() + " --out " + defaults_out.string(), dir_).exit_code, 0);
   const std::string defaults = file_text(defaults_out);
   ASSERT_FALSE(defaults.empty());
-  EXPECT_EQ(process_with("same", "iterations = 3\nlandmark_set = \"F4\"\n"), defaults)
+  EXPECT_EQ(process_with("same", "iterations = 3\nlandmark_set = \"F5\"\nauto_identity_frames = 20\n"), defaults)
       << "the defaults are the daemon's defaults";
   EXPECT_NE(process_with("one_iteration", "iterations = 1\n"), defaults) << "[model] iterations reaches the fit";
-  EXPECT_NE(process_with("lips_only", "landmark_set = \"F1\"\n"), defaults) << "[model] landmark_set too";
+  EXPECT_NE(process_with("no_jaw_line", "landmark_set = \"F4\"\n"), defaults) << "[model] landmark_set too";
+  EXPECT_NE(process_with("mean_face", "auto_identity_frames = 0\n"), defaults) << "and auto_identity_frames";
 
   const fs::path bad = dir_ / "bad.toml";
   std::ofstream(bad) << "[model]\niterations = 0\n";
@@ -139,13 +142,17 @@ TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   EXPECT_NE(run.stderr_text.find("key model.iterations"), std::string::npos) << run.stderr_text;
 }
 
-// The 52 ARKit columns, in Apple's order after the visemes: from the signals for the default
-// (pose-PCA) model, from the expression fit for the ICT head.
+// The 52 ARKit columns, in Apple's order after the visemes: from the signals for the generated
+// (pose-PCA) head, from the expression fit for the ICT head.
 TEST_F(ProcessTest, ArkitColumnsComeFromTheSignalsOrTheFit) {
   const fs::path video = kFixtureDir / "talking_face.avi";
   LIPDRIVE_REQUIRE_BUILT(video);
   const fs::path pca_out = dir_ / "pca.csv", ict_out = dir_ / "ict.csv";
-  ASSERT_EQ(run_process(video.string() + " --out " + pca_out.string(), dir_).exit_code, 0);
+  ASSERT_EQ(run_process(fmt::format("{} --model {} --landmark-set F4 --out {}", video.string(), test::kModel.string(),
+                                    pca_out.string()),
+                        dir_)
+                .exit_code,
+            0);
   const fs::path ict = fs::path(test::kModelDir) / "ict_face_light.lpm";
   const ProcessRun run = run_process(
       fmt::format("{} --model {} --landmark-set F5 --out {}", video.string(), ict.string(), ict_out.string()), dir_);

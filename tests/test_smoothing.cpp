@@ -38,9 +38,11 @@ const fs::path kFixtureDir = test::kFixtureDir;
 constexpr OneEuroSettings kShipped{.min_cutoff_hz = 1.0, .beta = 30.0, .d_cutoff_hz = 1.0};
 
 // Runs `lipdrive process VIDEO --out CSV` and reads the table; empty on failure.
+// With the generated head (F4), on whose height_fit the filter's closure depths were set.
 CsvTable process(const fs::path& video, const fs::path& csv) {
-  const std::string command =
-      std::string(test::kLipdrive) + " process " + video.string() + " --out " + csv.string() + " 2>/dev/null";
+  const std::string command = std::string(test::kLipdrive) + " process " + video.string() + " --model " +
+                              (fs::path(test::kModelDir) / "default.lpm").string() + " --landmark-set F4 --out " +
+                              csv.string() + " 2>/dev/null";
   const int status = std::system(command.c_str());
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << command;
   return read_csv_table(csv);

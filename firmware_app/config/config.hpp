@@ -108,7 +108,7 @@ struct Config {
 
   struct Model {
     std::filesystem::path file = default_model_path();
-    LandmarkSet landmark_set = kDefaultLandmarkSet;
+    LandmarkSet landmark_set = LandmarkSet::F5;
     int iterations = FitSettings{}.iterations;
     /// A model with expression shapes and no calibrated identity fits one on its first this many
     /// tracked frames (AutoIdentity); 0 = the mean face until calibrated.

@@ -14,7 +14,7 @@ std::filesystem::path model_directory() {
   return exe_dir.parent_path() / "share" / "lipdrive" / "models";
 }
 
-std::filesystem::path default_model_path() { return model_directory() / "default.lpm"; }
+std::filesystem::path default_model_path() { return model_directory() / "ict_face_light.lpm"; }
 
 std::filesystem::path default_predictor_path() {
   const auto compact = model_directory() / "face_landmarks.lpp";
