@@ -35,4 +35,34 @@ int MorphableModel::mapped_landmark_count() const {
       std::count_if(landmark_vertex.begin(), landmark_vertex.end(), [](std::int32_t v) { return v >= 0; }));
 }
 
+MorphableModel landmark_vertices_only(const MorphableModel& model) {
+  std::vector<std::int32_t> kept;
+  for (const std::int32_t v : model.landmark_vertex)
+    if (v >= 0) kept.push_back(v);
+  std::sort(kept.begin(), kept.end());
+  kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
+  const auto rows = static_cast<Eigen::Index>(3 * kept.size());
+  // Field by field: a copy of the whole model would double the memory this saves, if briefly.
+  MorphableModel out;
+  out.stddev = model.stddev;
+  out.total_variance = model.total_variance;
+  out.landmark_vertex = model.landmark_vertex;
+  out.pose_names = model.pose_names;
+  out.pose_coefficients = model.pose_coefficients;
+  out.expression_names = model.expression_names;
+  out.mean.resize(rows);
+  out.basis.resize(rows, model.basis.cols());
+  out.expressions.resize(rows, model.expressions.cols());
+  for (std::size_t k = 0; k < kept.size(); ++k)
+    for (int axis = 0; axis < 3; ++axis) {
+      const auto from = 3 * static_cast<Eigen::Index>(kept[k]) + axis, to = 3 * static_cast<Eigen::Index>(k) + axis;
+      out.mean(to) = model.mean(from);
+      out.basis.row(to) = model.basis.row(from);
+      if (model.expressions.size() > 0) out.expressions.row(to) = model.expressions.row(from);
+    }
+  for (std::int32_t& v : out.landmark_vertex)
+    if (v >= 0) v = static_cast<std::int32_t>(std::lower_bound(kept.begin(), kept.end(), v) - kept.begin());
+  return out;
+}
+
 }  // namespace lipdrive

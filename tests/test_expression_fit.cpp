@@ -7,6 +7,8 @@
 #include "core/arkit.hpp"
 #include "core/drive_signals.hpp"
 #include "core/fitting.hpp"
+#include "core/morphable_model.hpp"
+#include "core/mouth_measures.hpp"
 #include "core/statistics.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "reference_fitter.hpp"
@@ -121,6 +123,46 @@ TEST(ExpressionFit, RecoversRandomMouthWeightsOnARandomIdentity) {
   }
   // The jaw line (F5) is what shows the jaw: without it jawOpen is not recovered.
   EXPECT_LT(jaw_open[1], jaw_open[0]);
+}
+
+// The daemon keeps the model on its landmark vertices (LoadedFiles): the identity, the rest
+// point, every frame's fit and the mouth reference come out exactly as from the whole model.
+TEST(ExpressionFit, TheModelOnItsLandmarkVerticesFitsAsTheWholeModel) {
+  const MorphableModel& whole = ict_model();
+  const MorphableModel trimmed = landmark_vertices_only(whole);
+  EXPECT_LE(trimmed.num_vertices(), kNumLandmarks);
+  EXPECT_TRUE(trimmed.triangles.empty());
+  EXPECT_EQ(trimmed.num_components(), whole.num_components());
+  EXPECT_EQ(trimmed.expression_names, whole.expression_names);
+  std::mt19937 rng(68);
+  const Eigen::VectorXf identity = random_identity(whole, rng);
+  const Eigen::Matrix<double, 3, 4> camera = rig_camera(whole);
+  std::vector<Landmarks2D> frames;
+  for (int frame = 0; frame < 20; ++frame)
+    frames.push_back(noisy(testing::project(camera, ict_landmarks(whole, identity, random_expression(whole, rng))),
+                           1.0, rng));
+  for (int i = 0; i < kNumLandmarks; ++i)
+    if (whole.landmark_vertex[i] >= 0) {
+      EXPECT_EQ(ict_landmarks(trimmed, identity, FitOutput::Expressions::Zero()).col(i),
+                ict_landmarks(whole, identity, FitOutput::Expressions::Zero()).col(i))
+          << "landmark " << i;
+    }
+  const Eigen::VectorXf alpha_whole = fit_identity(whole, LandmarkSet::F5, frames);
+  const Eigen::VectorXf alpha_trimmed = fit_identity(trimmed, LandmarkSet::F5, frames);
+  EXPECT_EQ(alpha_trimmed, alpha_whole);
+  EXPECT_EQ(fit_rest_expression(trimmed, LandmarkSet::F5, frames, alpha_whole),
+            fit_rest_expression(whole, LandmarkSet::F5, frames, alpha_whole));
+  EXPECT_EQ(mouth_reference(trimmed, alpha_whole).neutral_upper_lip_z,
+            mouth_reference(whole, alpha_whole).neutral_upper_lip_z);
+  const Fitter fit_whole(whole, LandmarkSet::F5, {}, alpha_whole), fit_trimmed(trimmed, LandmarkSet::F5, {}, alpha_whole);
+  FitOutput a = Fitter::initial_output(), b = Fitter::initial_output();
+  for (const Landmarks2D& frame : frames) {
+    fit_whole.fit(frame, a);
+    fit_trimmed.fit(frame, b);
+    ASSERT_EQ(b.expressions, a.expressions);
+    ASSERT_EQ(b.camera, a.camera);
+    ASSERT_EQ(b.reprojection_error_px, a.reprojection_error_px);
+  }
 }
 
 TEST(ExpressionFit, IdentityFromThirtyNoisyNeutralFramesReproducesTheNeutralLandmarks) {

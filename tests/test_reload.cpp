@@ -2,10 +2,12 @@
 // a Modbus server polled flat out from several clients while the daemon is reloaded and
 // stopped never reaches freed memory (the sanitizer lane runs this under AddressSanitizer),
 // and the systemd watchdog keeps being fed through reloads.
+#include "core/model_format.hpp"
 #include "daemon_process.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/loaded_files.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "fixture_paths.hpp"
 
 #include <fmt/format.h>
@@ -74,6 +76,17 @@ TEST_F(ReloadTest, AnUnchangedFileIsSharedAndAChangedOneReadAgain) {
   // A file that went away is an error naming it, not the copy still in memory.
   fs::remove(copy);
   EXPECT_THROW(files.model(copy), CommandError);
+
+  // A model with expression shapes is kept on its landmark vertices; its fingerprint is still
+  // the whole file's (the one a profile's identity was calibrated against).
+  const fs::path ict = fs::path(test::kModelDir) / "ict_face_light.lpm";
+  const MorphableModel whole = load_model_file(ict);
+  const auto kept = files.model(ict);
+  EXPECT_LE(kept->num_vertices(), kNumLandmarks);
+  EXPECT_EQ(kept->num_expressions(), whole.num_expressions());
+  EXPECT_EQ(files.model_fingerprint(ict), identity_fingerprint(whole));
+  EXPECT_EQ(files.model(test::kModel)->num_vertices(), load_model_file(test::kModel).num_vertices())
+      << "a pose model is kept whole";
 }
 
 TEST_F(ReloadTest, ProcessorsOfTheSameConfigurationShareTheirFiles) {

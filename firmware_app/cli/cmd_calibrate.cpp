@@ -90,7 +90,7 @@ PerformerIdentity fit_performer_identity(const Config& config, LoadedFiles& file
   PerformerIdentity identity;
   try {
     const Eigen::VectorXf alpha = fit_identity(model, config.model.landmark_set, neutral.landmarks);
-    identity.model_fingerprint = identity_fingerprint(model);
+    identity.model_fingerprint = files.model_fingerprint(config.model.file);
     identity.components = std::min(static_cast<int>(alpha.size()), kMaxFitComponents);
     for (int i = 0; i < identity.components; ++i) identity.alpha[static_cast<std::size_t>(i)] = alpha[i];
     FitSettings fit;

@@ -143,7 +143,7 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   // Used only when no identity below is the performer's.
   const AutoIdentity automatic{.model = loaded, .frames = model.auto_identity_frames};
   if (profile.identity && loaded->has_expressions()) {
-    if (profile.identity->model_fingerprint == identity_fingerprint(*loaded)) {
+    if (profile.identity->model_fingerprint == files.model_fingerprint(model.file)) {
       identity = profile.identity->vector(loaded->num_components());
       rest = profile.identity->rest_weights();
     } else

@@ -1,5 +1,7 @@
 #include "firmware_app/config/loaded_files.hpp"
 
+#include "core/model_format.hpp"
+
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/predictor_file.hpp"
 
@@ -24,8 +26,17 @@ std::shared_ptr<const ShapePredictorData> LoadedFiles::predictor(const std::file
 }
 
 std::shared_ptr<const MorphableModel> LoadedFiles::model(const std::filesystem::path& path) {
-  return get(model_, path,
-             [](const std::filesystem::path& p) { return std::make_shared<const MorphableModel>(load_model_file(p)); });
+  return get(model_, path, [this](const std::filesystem::path& p) {
+    MorphableModel whole = load_model_file(p);
+    model_fingerprint_ = identity_fingerprint(whole);
+    return std::make_shared<const MorphableModel>(whole.has_expressions() ? landmark_vertices_only(whole)
+                                                                          : std::move(whole));
+  });
+}
+
+std::uint32_t LoadedFiles::model_fingerprint(const std::filesystem::path& path) {
+  model(path);
+  return model_fingerprint_;
 }
 
 }  // namespace lipdrive
