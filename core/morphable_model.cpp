@@ -17,6 +17,10 @@ Eigen::VectorXf MorphableModel::shape(const Eigen::VectorXf& alpha) const {
   return mean + basis * stddev.cwiseProduct(alpha);
 }
 
+Eigen::VectorXf MorphableModel::shape(const Eigen::VectorXf& alpha, const Eigen::VectorXf& w) const {
+  return shape(alpha) + expressions * w;
+}
+
 Mesh MorphableModel::mesh(const Eigen::VectorXf& shape_vector) const {
   Mesh m;
   m.vertices = Eigen::Map<const Eigen::Matrix3Xf>(shape_vector.data(), 3, num_vertices());

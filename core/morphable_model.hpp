@@ -46,6 +46,8 @@ struct MorphableModel {
 
   /// Shape vector for coefficients alpha (in units of each component's stddev).
   Eigen::VectorXf shape(const Eigen::VectorXf& alpha) const;
+  /// Shape vector of a model with expression shapes: identity alpha plus expression weights w.
+  Eigen::VectorXf shape(const Eigen::VectorXf& alpha, const Eigen::VectorXf& w) const;
   /// The mesh of a shape vector.
   Mesh mesh(const Eigen::VectorXf& shape_vector) const;
   std::optional<int> pose_index(std::string_view name) const;

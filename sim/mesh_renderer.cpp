@@ -1,6 +1,7 @@
 #include "sim/mesh_renderer.hpp"
 
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -56,6 +57,21 @@ ImageProjection fit_projection(const Eigen::Matrix3Xf& vertices, const RenderVie
   p.scale = std::min(usable * view.size.width / extent.x(), usable * view.size.height / extent.y());
   const Eigen::Vector2f centre = (lo + hi) / 2;
   p.offset = {view.size.width / 2.0f - p.scale * centre.x(), view.size.height / 2.0f + p.scale * centre.y()};
+  return p;
+}
+
+ImageProjection camera_projection(const Eigen::Matrix<double, 3, 4>& camera) {
+  // ImageProjection's y axis points up: its second row is the camera's negated.
+  Eigen::Matrix<double, 2, 3> rows = camera.topLeftCorner<2, 3>();
+  rows.row(1) *= -1;
+  const Eigen::JacobiSVD<Eigen::Matrix<double, 2, 3>> svd(rows, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Matrix<double, 2, 3> orthonormal = svd.matrixU() * svd.matrixV().leftCols<2>().transpose();
+  ImageProjection p;
+  p.rotation.row(0) = orthonormal.row(0).cast<float>();
+  p.rotation.row(1) = orthonormal.row(1).cast<float>();
+  p.rotation.row(2) = p.rotation.row(0).cross(p.rotation.row(1));
+  p.scale = static_cast<float>(svd.singularValues().mean());
+  p.offset = camera.block<2, 1>(0, 3).cast<float>();
   return p;
 }
 

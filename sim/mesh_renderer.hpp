@@ -33,6 +33,12 @@ struct ImageProjection {
 /// the image with view.margin left free on the tighter side.
 ImageProjection fit_projection(const Eigen::Matrix3Xf& vertices, const RenderView& view);
 
+/// The scaled orthographic projection nearest an affine camera that maps model space to image
+/// pixels (image = camera * [X; 1], y down, as a fit's FitOutput::camera): its rotation from the
+/// SVD of the camera's 2x3 part (the nearest orthonormal rows, Hartley & Zisserman 2004, 6.3.4),
+/// its scale the mean of the two singular values. A fitted head then renders where it was seen.
+ImageProjection camera_projection(const Eigen::Matrix<double, 3, 4>& camera);
+
 /// Renders with fit_projection(mesh.vertices, view). 8-bit BGR.
 cv::Mat render_mesh(const Mesh& mesh, const RenderView& view);
 

@@ -1,13 +1,15 @@
-// PCA model builder (core/model_builder) and `lipdrive model build | info`.
+// PCA model builder (core/model_builder) and `lipdrive model build | info | render`.
 #include "build_paths.hpp"
 #include "core/model_builder.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "fixture_paths.hpp"
 #include "sim/synthetic_head.hpp"
 
 #include <Eigen/QR>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <cstdlib>
@@ -209,6 +211,37 @@ TEST_F(ModelCommandTest, RejectsAPoseWithADifferentTriangleList) {
 TEST_F(ModelCommandTest, MissingModelFileForInfo) {
   EXPECT_EQ(run("model info " + (dir_ / "none.lpm").string()), kExitNoInput);
   EXPECT_THAT(output_, HasSubstr("none.lpm"));
+}
+
+// The head fitted to a frame of the generated clip, rendered through the fit's camera beside the
+// frame: the two halves show the same crop, so the head's skin (its front, lit) covers the middle
+// of its half, where the face is in the other, and the crop's corners, beyond the face, stay black.
+TEST_F(ModelCommandTest, RendersTheHeadFittedToAVideoFrameBesideIt) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  const auto png = dir_ / "fitted.png";
+  ASSERT_EQ(
+      run(fmt::format("model render --video {} --frame 40 --size 200 --out {}", test::kClip.string(), png.string())), 0)
+      << output_;
+  const cv::Mat image = cv::imread(png.string(), cv::IMREAD_COLOR);
+  ASSERT_EQ(image.rows, 200);
+  ASSERT_EQ(image.cols % 2, 0);
+  const cv::Mat head = image.colRange(image.cols / 2, image.cols);
+  const auto skin = [&](int x, int y) {
+    const cv::Vec3b bgr = head.at<cv::Vec3b>(y, x);
+    return bgr[2] > 90 && bgr[2] > bgr[0] + 20 && bgr[1] > bgr[0];
+  };
+  const auto black = [&](int x, int y) { return head.at<cv::Vec3b>(y, x) == cv::Vec3b(0, 0, 0); };
+  EXPECT_TRUE(skin(head.cols / 2, head.rows / 2));
+  EXPECT_TRUE(black(2, 2));
+  EXPECT_TRUE(black(head.cols - 3, 2));
+  EXPECT_TRUE(black(2, head.rows - 3));
+
+  EXPECT_EQ(run(fmt::format("model render --video {} --frame 100000 --out {}", test::kClip.string(), png.string())),
+            kExitDataError);
+  EXPECT_THAT(output_, HasSubstr("no frame 100000"));
+  EXPECT_EQ(run(fmt::format("model render --video {} --out {}", (dir_ / "none.avi").string(), png.string())),
+            kExitNoInput);
+  EXPECT_THAT(output_, HasSubstr("none.avi"));
 }
 
 // --- the default head --------------------------------------------------------

@@ -4,6 +4,7 @@
 #include "sim/mesh_renderer.hpp"
 #include "sim/synthetic_head.hpp"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -231,6 +232,39 @@ TEST(MeshRenderer, OpenMouthIsADarkCavity) {
   RecordProperty("open_mouth_grey", std::to_string(open));
   EXPECT_LT(open, closed / 2);
   EXPECT_GT(closed, 60);
+}
+
+// A fit's affine camera (pixels, y down) back to the projection that renders the head where the
+// camera saw it: a scaled rotation is recovered exactly; a camera with shear and unequal scales
+// keeps a true rotation and lands its points within the shear's size.
+TEST(MeshRenderer, CameraProjectionRendersWhereTheCameraProjects) {
+  const Eigen::Matrix3d rotation =
+      (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(-0.2, Eigen::Vector3d::UnitX()) *
+       Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()))
+          .toRotationMatrix();
+  Eigen::Matrix<double, 3, 4> camera = Eigen::Matrix<double, 3, 4>::Zero();
+  camera.topLeftCorner<2, 3>() << 1.7 * rotation.row(0), -1.7 * rotation.row(1);
+  camera.block<2, 1>(0, 3) << 180, 140;
+  camera(2, 3) = 1;
+  const ImageProjection p = camera_projection(camera);
+  EXPECT_NEAR(p.scale, 1.7, 1e-5);
+  EXPECT_TRUE(p.rotation.isApprox(rotation.cast<float>(), 1e-5f)) << p.rotation;
+  const Eigen::Matrix3Xf points = mesh_of(pose("neutral")).vertices;
+  double worst = 0;
+  for (Eigen::Index i = 0; i < points.cols(); ++i) {
+    const Eigen::Vector2d seen = camera.topLeftCorner<2, 3>() * points.col(i).cast<double>() + camera.block<2, 1>(0, 3);
+    worst = std::max(worst, (p.project(points.col(i)).cast<double>() - seen).norm());
+  }
+  EXPECT_LT(worst, 1e-3) << "px";
+
+  camera(0, 1) += 0.05;  // shear
+  camera.row(1) *= 1.1;  // and unequal scales
+  camera(1, 3) = 140;
+  const ImageProjection q = camera_projection(camera);
+  EXPECT_TRUE((q.rotation * q.rotation.transpose()).isIdentity(1e-5f));
+  EXPECT_NEAR(q.rotation.determinant(), 1, 1e-5);
+  EXPECT_GT(q.scale, 1.7);
+  EXPECT_LT(q.scale, 1.7 * 1.1);
 }
 
 TEST(MeshRenderer, RendersQuickly) {

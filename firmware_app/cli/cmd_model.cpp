@@ -1,21 +1,30 @@
 // `lipdrive model build | info | render`: build a morphable model from a folder of pose
-// meshes, describe a model file, and render one of its poses to a PNG.
+// meshes, describe a model file, and render one of its poses, or the head fitted to a frame of
+// a video beside that frame, to a PNG.
 #include "core/model_builder.hpp"
 #include "core/model_format.hpp"
 #include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/config/config.hpp"
+#include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/paths.hpp"
+#include "firmware_app/daemon/frame_processor.hpp"
 #include "sim/mesh_renderer.hpp"
+#include "sim/simulated_camera.hpp"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -158,6 +167,8 @@ struct RenderArgs {
   std::string pose = "neutral";
   float yaw_degrees = 0;
   int size = 640;
+  fs::path video;  // given: the head fitted to its frame `frame`, beside that frame
+  int frame = 0;
   fs::path out;
 };
 
@@ -177,10 +188,90 @@ Eigen::VectorXf named_shape(const MorphableModel& model, const std::string& name
       kExitDataError);
 }
 
+/// One frame of a video and what the daemon's processing made of it, tracked and fitted from the
+/// video's first frame on as `lipdrive process` does (the default configuration on --model).
+struct FittedFrame {
+  cv::Mat gray;
+  Landmarks2D landmarks;
+  Eigen::Matrix<double, 3, 4> camera;
+  Eigen::VectorXf shape;  // the fitted head's shape vector
+};
+
+FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
+  Config config;
+  config.model.file = args.model;
+  const std::unique_ptr<FrameProcessor> processor = make_processor(config, load_performer(config));
+  SimulatedCameraOptions options;
+  options.input = args.video;
+  std::optional<SimulatedCamera> video;
+  try {
+    video.emplace(options);
+  } catch (const SourceError& e) {
+    throw CommandError(e.what(), kExitNoInput);
+  }
+  const std::string name = args.video.string();
+  Frame frame;
+  const FrameMeasurement* result = nullptr;
+  for (int n = 0; n <= args.frame; ++n) {
+    const GrabStatus status = video->grab(frame, std::chrono::milliseconds(0));
+    if (status == GrabStatus::kEndOfStream)
+      throw CommandError(fmt::format("{}: {} frames, no frame {}", name, n, args.frame), kExitDataError);
+    if (status != GrabStatus::kFrame)
+      throw CommandError(fmt::format("{}: frame {}: {}", name, n, video->last_error().value_or("not decoded")),
+                         kExitDataError);
+    if (video->independent_frames()) processor->forget();
+    result = &processor->process(frame.gray);
+  }
+  if (!result->tracked)
+    throw CommandError(fmt::format("{}: frame {}: no face tracked", name, args.frame), kExitDataError);
+  if (processor->identity_pending())
+    fmt::print(stderr, "frame {}: the identity is not fitted yet ([model] auto_identity_frames): the mean face\n",
+               args.frame);
+  const FitOutput& fit = processor->fit();
+  FittedFrame fitted{frame.gray.clone(), result->landmarks, fit.camera, {}};
+  if (model.has_expressions()) {
+    const Eigen::VectorXf& identity = processor->identity();
+    fitted.shape = model.shape(identity.size() ? identity : Eigen::VectorXf::Zero(model.num_components()),
+                               fit.expressions.head(model.num_expressions()).cast<float>());
+  } else {
+    fitted.shape = model.shape(fit.coefficients.head(model.num_components()).cast<float>());
+  }
+  return fitted;
+}
+
+/// The frame around its tracked landmarks with them drawn, beside the fitted head rendered
+/// through the fit's camera (camera_projection) into the same crop: `height` pixels high.
+cv::Mat frame_beside_head(const FittedFrame& fitted, const MorphableModel& model, int height) {
+  const Eigen::Vector2d lo = fitted.landmarks.rowwise().minCoeff(), hi = fitted.landmarks.rowwise().maxCoeff();
+  const Eigen::Vector2d margin = 0.3 * (hi - lo);
+  const cv::Rect face =
+      cv::Rect(cv::Point(static_cast<int>(lo.x() - margin.x()), static_cast<int>(lo.y() - 2 * margin.y())),
+               cv::Point(static_cast<int>(hi.x() + margin.x()), static_cast<int>(hi.y() + margin.y()))) &
+      cv::Rect(0, 0, fitted.gray.cols, fitted.gray.rows);
+  const double zoom = static_cast<double>(height) / face.height;
+  const cv::Size size(static_cast<int>(std::lround(face.width * zoom)), height);
+
+  cv::Mat left;
+  cv::resize(fitted.gray(face), left, size, 0, 0, cv::INTER_CUBIC);
+  cv::cvtColor(left, left, cv::COLOR_GRAY2BGR);
+  for (int l = 0; l < kNumLandmarks; ++l) {
+    const Eigen::Vector2d p = zoom * (fitted.landmarks.col(l) - Eigen::Vector2d(face.x, face.y));
+    cv::circle(left, cv::Point2d(p.x(), p.y()), std::max(1, height / 200), cv::Scalar(80, 220, 80), cv::FILLED,
+               cv::LINE_AA);
+  }
+  ImageProjection projection = camera_projection(fitted.camera);
+  projection.scale *= static_cast<float>(zoom);
+  projection.offset = (zoom * (projection.offset.cast<double>() - Eigen::Vector2d(face.x, face.y))).cast<float>();
+  cv::Mat both;
+  cv::hconcat(left, render_mesh(model.mesh(fitted.shape), size, projection), both);
+  return both;
+}
+
 void render(const RenderArgs& args) {
   const MorphableModel model = load_model_file(args.model);
-  const Mesh mesh = model.mesh(named_shape(model, args.pose, args.model));
-  const cv::Mat image = render_mesh(mesh, RenderView{args.yaw_degrees, cv::Size(args.size, args.size)});
+  const cv::Mat image = args.video.empty() ? render_mesh(model.mesh(named_shape(model, args.pose, args.model)),
+                                                         RenderView{args.yaw_degrees, cv::Size(args.size, args.size)})
+                                           : frame_beside_head(fit_frame(model, args), model, args.size);
   try {
     write_png(args.out, image);
   } catch (const MediaError& e) {
@@ -213,15 +304,22 @@ void add_info_command(CLI::App& model) {
 
 void add_render_command(CLI::App& model) {
   auto args = std::make_shared<RenderArgs>();
-  auto* cmd = model.add_subcommand("render", "Render one pose of a model file to a PNG");
+  auto* cmd = model.add_subcommand(
+      "render", "Render one pose of a model file, or the head it fits to a video frame beside that frame, to a PNG");
   cmd->add_option("--model", args->model, "Model file (.lpm)")->capture_default_str();
   cmd->add_option("--pose", args->pose,
                   "Pose name (see `lipdrive model info`); for a model with expressions also an expression")
       ->capture_default_str();
   cmd->add_option("--yaw", args->yaw_degrees, "Head rotation in degrees: 0 frontal, 90 right profile")
       ->capture_default_str();
-  cmd->add_option("--size", args->size, "Image width and height in pixels")
+  cmd->add_option("--size", args->size, "Image width and height in pixels (with --video: the height)")
       ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  cmd->add_option("--video", args->video,
+                  "A recording: render the head fitted to its frame --frame (tracked from the first frame on, as "
+                  "`lipdrive process` does) beside that frame and its landmarks, through the fit's camera");
+  cmd->add_option("--frame", args->frame, "With --video: the frame, counted from 0")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--out", args->out, "PNG file to write")->required();
   cmd->callback([args] { render(*args); });

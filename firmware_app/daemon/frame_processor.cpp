@@ -16,6 +16,7 @@ FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, Fit
       settings_(settings),
       automatic_(identity.size() == 0 && model.has_expressions() && automatic.model ? std::move(automatic)
                                                                                     : AutoIdentity{}),
+      identity_(identity),
       fitter_(model, set, settings, identity),
       arkit_(model.expression_names),
       reference_(mouth_reference(model, identity)),
@@ -33,14 +34,15 @@ void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
   if (static_cast<int>(identity_frames_.size()) < automatic_.frames) return;
   const std::int64_t start = monotonic_ns();
   const MorphableModel& model = *automatic_.model;
-  const Eigen::VectorXf identity = fit_identity(model, set_, identity_frames_);
-  rest_ = fit_rest_expression(model, set_, identity_frames_, identity, settings_);
-  fitter_ = Fitter(model, set_, settings_, identity);
-  reference_ = mouth_reference(model, identity);
+  identity_ = fit_identity(model, set_, identity_frames_);
+  rest_ = fit_rest_expression(model, set_, identity_frames_, identity_, settings_);
+  fitter_ = Fitter(model, set_, settings_, identity_);
+  reference_ = mouth_reference(model, identity_);
   fit_ = Fitter::initial_output();
-  spdlog::info("identity: fitted from the first {} tracked frames in {:.1f} ms (no calibrated identity; "
-               "`lipdrive calibrate` fits the performer's own)",
-               identity_frames_.size(), ms_since(start));
+  spdlog::info(
+      "identity: fitted from the first {} tracked frames in {:.1f} ms (no calibrated identity; "
+      "`lipdrive calibrate` fits the performer's own)",
+      identity_frames_.size(), ms_since(start));
   automatic_ = AutoIdentity{};
   identity_frames_ = {};
 }

@@ -65,6 +65,9 @@ class FrameProcessor {
   /// Whether an AutoIdentity is still gathering its frames (the fit is on the mean face).
   bool identity_pending() const { return automatic_.frames > 0; }
 
+  /// The identity the fit is on (a model with expression shapes; empty: the mean face).
+  const Eigen::VectorXf& identity() const { return identity_; }
+
   /// The last fit; its projected landmarks are the fitted model's in the last frame when that
   /// frame was tracked.
   const FitOutput& fit() const { return fit_; }
@@ -81,8 +84,9 @@ class FrameProcessor {
 
   LandmarkSet set_;
   FitSettings settings_;
-  AutoIdentity automatic_;                   // frames = 0 once fitted, or when off
+  AutoIdentity automatic_;                    // frames = 0 once fitted, or when off
   std::vector<Landmarks2D> identity_frames_;  // reserved for automatic_.frames
+  Eigen::VectorXf identity_;
   Fitter fitter_;
   ArkitMap arkit_;
   MouthReference reference_;
