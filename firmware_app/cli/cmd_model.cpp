@@ -212,6 +212,7 @@ FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
   const std::string name = args.video.string();
   Frame frame;
   const FrameMeasurement* result = nullptr;
+  Eigen::VectorXf identity;  // the one the frame is fitted on
   for (int n = 0; n <= args.frame; ++n) {
     const GrabStatus status = video->grab(frame, std::chrono::milliseconds(0));
     if (status == GrabStatus::kEndOfStream)
@@ -220,17 +221,19 @@ FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
       throw CommandError(fmt::format("{}: frame {}: {}", name, n, video->last_error().value_or("not decoded")),
                          kExitDataError);
     if (video->independent_frames()) processor->forget();
+    identity = processor->identity();
     result = &processor->process(frame.gray);
   }
   if (!result->tracked)
     throw CommandError(fmt::format("{}: frame {}: no face tracked", name, args.frame), kExitDataError);
   if (processor->identity_pending())
-    fmt::print(stderr, "frame {}: the identity is not fitted yet ([model] auto_identity_frames): the mean face\n",
+    fmt::print(stderr,
+               "frame {}: fitted before the identity of the first tracked frames ([model] "
+               "auto_identity_frames)\n",
                args.frame);
   const FitOutput& fit = processor->fit();
   FittedFrame fitted{frame.gray.clone(), result->landmarks, fit.camera, {}};
   if (model.has_expressions()) {
-    const Eigen::VectorXf& identity = processor->identity();
     fitted.shape = model.shape(identity.size() ? identity : Eigen::VectorXf::Zero(model.num_components()),
                                fit.expressions.head(model.num_expressions()).cast<float>());
   } else {

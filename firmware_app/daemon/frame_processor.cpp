@@ -28,17 +28,21 @@ FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, Fit
 
 // Calibration's two steps (cmd_calibrate.cpp) on the gathered frames, once: the identity
 // behind them (fit_identity), then its rest point (fit_rest_expression); every later frame is
-// fitted on them, warm-started afresh.
+// fitted on them, warm-started afresh (this frame's fit() stays the one it was fitted with). Until all are gathered,
+// the identity of the first frame alone carries the fit: on the mean face the difference between the faces goes into
+// the expression weights, and the fitted mouth's measures (height_fit, width_fit, protrusion_3d) with it.
 void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
   identity_frames_.push_back(landmarks);
-  if (static_cast<int>(identity_frames_.size()) < automatic_.frames) return;
+  const bool all = static_cast<int>(identity_frames_.size()) >= automatic_.frames;
+  if (identity_frames_.size() > 1 && !all) return;
   const std::int64_t start = monotonic_ns();
   const MorphableModel& model = *automatic_.model;
   identity_ = fit_identity(model, set_, identity_frames_);
-  rest_ = fit_rest_expression(model, set_, identity_frames_, identity_, settings_);
   fitter_ = Fitter(model, set_, settings_, identity_);
   reference_ = mouth_reference(model, identity_);
-  fit_ = Fitter::initial_output();
+  fit_afresh_ = true;
+  if (!all) return;
+  rest_ = fit_rest_expression(model, set_, identity_frames_, identity_, settings_);
   spdlog::info(
       "identity: fitted from the first {} tracked frames in {:.1f} ms (no calibrated identity; "
       "`lipdrive calibrate` fits the performer's own)",
@@ -56,8 +60,10 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   r.landmarks_ms = ms_since(start);
   r.appearance = tracker_.appearance();
   if (status == TrackStatus::kNoFace) return r;
-  // A newly acquired face may be another pose entirely: do not warm-start from the old one.
-  if (status == TrackStatus::kAcquired) fit_ = Fitter::initial_output();
+  // A newly acquired face may be another pose entirely, and a new identity another shape: do not
+  // warm-start from the old one.
+  if (status == TrackStatus::kAcquired || fit_afresh_) fit_ = Fitter::initial_output();
+  fit_afresh_ = false;
   start = monotonic_ns();
   fitter_.fit(r.landmarks, fit_);
   r.fit_ms = ms_since(start);

@@ -32,7 +32,8 @@ struct FrameMeasurement {
 /// Without a calibrated identity, a model with expression shapes can fit one itself: from its
 /// first `frames` tracked frames, taken as neutral as `lipdrive calibrate` takes its first ones,
 /// the identity and its rest point as calibration fits them (docs/arkit.md, "Without a
-/// calibration"). Until then the expression weights are the mean face's and read 0.
+/// calibration"). Until then the fit runs on a provisional identity, the first frame's alone,
+/// and the expression weights read 0.
 struct AutoIdentity {
   std::shared_ptr<const MorphableModel> model;  // the processor's model, kept for the one-time fit
   int frames = 0;                               // 0 = off: the mean face until calibrated
@@ -52,7 +53,7 @@ class FrameProcessor {
 
   /// Measures one luma frame (CV_8UC1). Allocation-free while the face stays tracked
   /// (acquiring it runs dlib's detector, which allocates; so does the one frame on which an
-  /// AutoIdentity is fitted).
+  /// AutoIdentity is fitted, and the first of its frames, which fits the provisional one).
   const FrameMeasurement& process(const cv::Mat& gray);
 
   /// The next frame is unrelated to the last (independent images): detect afresh, and gather
@@ -62,10 +63,12 @@ class FrameProcessor {
     identity_frames_.clear();
   }
 
-  /// Whether an AutoIdentity is still gathering its frames (the fit is on the mean face).
+  /// Whether an AutoIdentity is still gathering its frames (the fit is on the mean face, then
+  /// on the provisional identity, and the expression weights read 0).
   bool identity_pending() const { return automatic_.frames > 0; }
 
-  /// The identity the fit is on (a model with expression shapes; empty: the mean face).
+  /// The identity the next frame is fitted on (a model with expression shapes; empty: the mean
+  /// face). An AutoIdentity changes it after the frame that completes (or starts) its frames.
   const Eigen::VectorXf& identity() const { return identity_; }
 
   /// The last fit; its projected landmarks are the fitted model's in the last frame when that
@@ -92,8 +95,9 @@ class FrameProcessor {
   MouthReference reference_;
   std::optional<VisemeSolver> visemes_;  // the pose match; nullopt: the model lacks the viseme poses
   FaceTracker tracker_;
-  FitOutput fit_ = Fitter::initial_output();                            // warm start of the next frame
-  FitOutput::Expressions rest_;                                         // the performer's rest point
+  FitOutput fit_ = Fitter::initial_output();  // warm start of the next frame
+  bool fit_afresh_ = false;                   // the identity changed: the next frame starts from initial_output()
+  FitOutput::Expressions rest_;               // the performer's rest point
   FitOutput::Expressions above_rest_ = FitOutput::Expressions::Zero();  // the last fit's weights above it
   FrameMeasurement result_;
 };
