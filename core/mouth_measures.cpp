@@ -1,19 +1,25 @@
 #include "core/mouth_measures.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
 namespace lipdrive {
 
-MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity) {
+MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity,
+                               std::span<const double> rest) {
   const int vertex = model.landmark_vertex[ibug::kOuterLipTop];
   if (vertex < 0 || vertex >= model.num_vertices())
     throw std::invalid_argument("the model does not map landmark 51 (upper-lip midpoint) to a vertex");
   const auto neutral = model.pose_index("neutral");
-  const Eigen::VectorXf shape = neutral              ? model.shape(model.pose_coefficients.col(*neutral))
+  const Eigen::VectorXf shape = neutral               ? model.shape(model.pose_coefficients.col(*neutral))
                                 : identity.size() > 0 ? model.shape(identity)
                                                       : Eigen::VectorXf(model.mean);
-  return MouthReference{static_cast<double>(shape(3 * vertex + 2))};
+  double z = shape(3 * vertex + 2);
+  const std::size_t shapes = std::min(rest.size(), static_cast<std::size_t>(model.num_expressions()));
+  for (std::size_t e = 0; e < shapes; ++e)
+    z += rest[e] * model.expressions(3 * vertex + 2, static_cast<Eigen::Index>(e));
+  return MouthReference{z};
 }
 
 double fit_quality(double reprojection_error_px, double d_px) {

@@ -9,6 +9,8 @@
 
 #include <Eigen/Core>
 
+#include <span>
+
 namespace lipdrive {
 
 /// Width and height of the inner lips, each over the normaliser d.
@@ -34,9 +36,12 @@ struct MouthReference {
 };
 
 /// The reference of a model: its pose named "neutral", or else the mean shape moved by the
-/// performer's `identity` (Fitter's; empty = the mean face). Throws std::invalid_argument when
+/// performer's `identity` (Fitter's; empty = the mean face) and, for a model with expression
+/// shapes, by the weights of the performer's rest point (`rest`, the model's order; empty =
+/// none), so that the performer's rest measures protrusion 0. Throws std::invalid_argument when
 /// landmark 51 is unmapped.
-MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity = Eigen::VectorXf());
+MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity = Eigen::VectorXf(),
+                               std::span<const double> rest = {});
 
 struct MouthMeasures {
   double width_2d = 0, height_2d = 0;    // tracked landmarks

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include <cmath>
 #include <stdexcept>
 
@@ -79,6 +81,18 @@ TEST(MouthReference, NeutralPoseOrTheMean) {
   MorphableModel unmapped = protrusion_model(true);
   unmapped.landmark_vertex[51] = -1;
   EXPECT_THROW(mouth_reference(unmapped), std::invalid_argument);
+}
+
+// A model with expression shapes: the identity's shape moved by the rest point's weights.
+TEST(MouthReference, TheIdentityAtItsRestPoint) {
+  MorphableModel m = protrusion_model(false);
+  m.expressions = Eigen::MatrixXf::Zero(3 * kNumLandmarks, 2);
+  m.expressions(3 * 51 + 2, 1) = -4.0f;  // the second shape draws the upper lip in by 4 mm
+  m.expression_names = {"mouthFunnel", "mouthRollUpper"};
+  const Eigen::VectorXf identity = Eigen::VectorXf::Constant(1, 1.0f);
+  EXPECT_DOUBLE_EQ(mouth_reference(m, identity).neutral_upper_lip_z, 2.0);
+  const std::array<double, 3> rest{0.9, 0.5, 0.7};  // a fitter's size: the shapes past the model's are ignored
+  EXPECT_DOUBLE_EQ(mouth_reference(m, identity, rest).neutral_upper_lip_z, 0.0);
 }
 
 TEST(MeasureMouth, AllMeasuresOfAFrame) {

@@ -5,6 +5,7 @@
 #include "core/calibration.hpp"
 #include "core/face_tracker.hpp"
 #include "core/metrics.hpp"
+#include "core/statistics.hpp"
 #include "core/viseme_weights.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
@@ -221,6 +222,13 @@ TEST_F(ProcessTest, ArkitColumnsComeFromTheSignalsOrTheFit) {
     EXPECT_EQ(mean_face.stderr_text.find("identity: fitted"), std::string::npos) << "off: the mean face throughout";
     EXPECT_GT(numeric_column(read_csv_table(out), "arkit_jawOpen")[0], 0.1) << "the mean face's weights, not held";
   }
+  // Its protrusion is measured from the face's own rest (the identity and its rest point, from
+  // the first frame alone until the 20th): the clip starts at rest and reads about 0 there, where
+  // the mean face, whose difference from this face goes into the expression weights, reads -0.09.
+  std::vector<double> first_protrusion = numeric_column(fitted, "protrusion_3d");
+  first_protrusion.resize(20);
+  RecordProperty("ict_protrusion_3d_median_first_20", fmt::format("{:.4f}", median(first_protrusion)));
+  EXPECT_LT(std::abs(median(first_protrusion)), 0.02);
   for (const char* held : {"cheekPuff", "tongueOut", "eyeLookInLeft", "eyeLookUpRight"})
     EXPECT_EQ(highest(fitted, held), 0) << held;
   int moving = 0;
@@ -305,6 +313,13 @@ TEST_F(ProcessTest, GridSpeechClosesTheLipsOnBilabials) {
     RecordProperty(fmt::format("{}_scaled_{}_final_silence_mean", name, column), fmt::format("{:.3f}", silence / 19));
     EXPECT_LE(silence / 19, 0.15) << "mouth not closed in the final silence";
     if (name == "default") {
+      // The ICT head's protrusion is measured from the face's rest (its identity and rest point,
+      // the first frame's until the 20th): at rest before the sentence it reads about 0, where
+      // from the identity's neutral shape alone it read -0.15 (the rest point draws the lips in).
+      std::vector<double> protrusion = numeric_column(table, "protrusion_3d");
+      protrusion = std::vector<double>(protrusion.begin() + 1, protrusion.begin() + 18);
+      RecordProperty("default_protrusion_3d_median_at_rest", fmt::format("{:.4f}", median(protrusion)));
+      EXPECT_LT(std::abs(median(protrusion)), 0.05);
       ASSERT_TRUE(has_column(table, "x67"));
       ASSERT_TRUE(has_column(table, "y0"));
       const auto fitted = scaled(numeric_column(table, "height_fit"));

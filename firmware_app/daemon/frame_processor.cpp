@@ -19,18 +19,19 @@ FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, Fit
       identity_(identity),
       fitter_(model, set, settings, identity),
       arkit_(model.expression_names),
-      reference_(mouth_reference(model, identity)),
+      reference_(mouth_reference(model, identity, std::span<const double>(rest.data(), rest.size()))),
       visemes_(make_viseme_solver(model, set)),
       tracker_(std::move(predictor)),
       rest_(rest) {
   identity_frames_.reserve(static_cast<std::size_t>(automatic_.frames));
 }
 
-// Calibration's two steps (cmd_calibrate.cpp) on the gathered frames, once: the identity
-// behind them (fit_identity), then its rest point (fit_rest_expression); every later frame is
-// fitted on them, warm-started afresh (this frame's fit() stays the one it was fitted with). Until all are gathered,
-// the identity of the first frame alone carries the fit: on the mean face the difference between the faces goes into
-// the expression weights, and the fitted mouth's measures (height_fit, width_fit, protrusion_3d) with it.
+// Calibration's two steps (cmd_calibrate.cpp) on the gathered frames: the identity behind them
+// (fit_identity), then its rest point (fit_rest_expression). Every later frame is fitted on
+// them, warm-started afresh (this frame's fit() stays the one it was fitted with). Until all
+// are gathered, the two of the first frame alone carry the fit: on the mean face the difference
+// between the faces goes into the expression weights, and from there into the fitted mouth's
+// measures (height_fit, width_fit, protrusion_3d); the ARKit weights read 0 until the last.
 void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
   identity_frames_.push_back(landmarks);
   const bool all = static_cast<int>(identity_frames_.size()) >= automatic_.frames;
@@ -38,11 +39,11 @@ void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
   const std::int64_t start = monotonic_ns();
   const MorphableModel& model = *automatic_.model;
   identity_ = fit_identity(model, set_, identity_frames_);
+  rest_ = fit_rest_expression(model, set_, identity_frames_, identity_, settings_);
   fitter_ = Fitter(model, set_, settings_, identity_);
-  reference_ = mouth_reference(model, identity_);
+  reference_ = mouth_reference(model, identity_, std::span<const double>(rest_.data(), rest_.size()));
   fit_afresh_ = true;
   if (!all) return;
-  rest_ = fit_rest_expression(model, set_, identity_frames_, identity_, settings_);
   spdlog::info(
       "identity: fitted from the first {} tracked frames in {:.1f} ms (no calibrated identity; "
       "`lipdrive calibrate` fits the performer's own)",
