@@ -251,6 +251,7 @@ cv::Mat frame_beside_head(const FittedFrame& fitted, const MorphableModel& model
       cv::Rect(cv::Point(static_cast<int>(lo.x() - margin.x()), static_cast<int>(lo.y() - 2 * margin.y())),
                cv::Point(static_cast<int>(hi.x() + margin.x()), static_cast<int>(hi.y() + margin.y()))) &
       cv::Rect(0, 0, fitted.gray.cols, fitted.gray.rows);
+  if (face.width < 2 || face.height < 2) throw CommandError("the tracked face lies outside the frame", kExitDataError);
   const double zoom = static_cast<double>(height) / face.height;
   const cv::Size size(static_cast<int>(std::lround(face.width * zoom)), height);
 

@@ -32,8 +32,8 @@ struct FrameMeasurement {
 /// Without a calibrated identity, a model with expression shapes can fit one itself: from its
 /// first `frames` tracked frames, taken as neutral as `lipdrive calibrate` takes its first ones,
 /// the identity and its rest point as calibration fits them (docs/arkit.md, "Without a
-/// calibration"). Until then the fit runs on a provisional identity, the first frame's alone,
-/// and the expression weights read 0.
+/// calibration"). Until then the fit runs on a provisional identity and rest point, the first
+/// frame's alone, and the expression weights read 0.
 struct AutoIdentity {
   std::shared_ptr<const MorphableModel> model;  // the processor's model, kept for the one-time fit
   int frames = 0;                               // 0 = off: the mean face until calibrated
