@@ -222,6 +222,7 @@ TEST_F(ModelCommandTest, RendersTheHeadFittedToAVideoFrameBesideIt) {
   ASSERT_EQ(
       run(fmt::format("model render --video {} --frame 40 --size 200 --out {}", test::kClip.string(), png.string())), 0)
       << output_;
+  EXPECT_THAT(output_, HasSubstr("frame 40: fit quality"));
   const cv::Mat image = cv::imread(png.string(), cv::IMREAD_COLOR);
   ASSERT_EQ(image.rows, 200);
   ASSERT_EQ(image.cols % 2, 0);

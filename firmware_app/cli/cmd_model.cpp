@@ -232,6 +232,8 @@ FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
                "auto_identity_frames)\n",
                args.frame);
   const FitOutput& fit = processor->fit();
+  fmt::print(stderr, "frame {}: fit quality {:.3f}, reprojection error {:.2f} px\n", args.frame,
+             result->measures.quality, fit.reprojection_error_px);
   FittedFrame fitted{frame.gray.clone(), result->landmarks, fit.camera, {}};
   if (model.has_expressions()) {
     fitted.shape = model.shape(identity.size() ? identity : Eigen::VectorXf::Zero(model.num_components()),
