@@ -11,6 +11,7 @@
 #include "core/statistics.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/recording.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/loaded_files.hpp"
@@ -40,15 +41,7 @@ struct CalibrateOptions {
 
 std::unique_ptr<FrameSource> open_source(const Config& config, const CalibrateOptions& options) {
   if (options.input.empty()) return make_source(config);
-  SimulatedCameraOptions sim;
-  sim.input = options.input;
-  sim.real_time = false;
-  sim.loop = false;
-  try {
-    return std::make_unique<SimulatedCamera>(sim);
-  } catch (const SourceError& e) {
-    throw CommandError(e.what(), kExitNoInput);
-  }
+  return std::make_unique<SimulatedCamera>(open_recording(options.input));
 }
 
 /// Per index, the median over the neutral frames: a blink or a mistracked frame moves nothing.

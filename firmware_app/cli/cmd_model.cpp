@@ -6,13 +6,13 @@
 #include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/recording.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/paths.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "sim/mesh_renderer.hpp"
-#include "sim/simulated_camera.hpp"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -24,7 +24,6 @@
 #include <chrono>
 #include <filesystem>
 #include <memory>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -201,26 +200,19 @@ FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
   Config config;
   config.model.file = args.model;
   const std::unique_ptr<FrameProcessor> processor = make_processor(config, load_performer(config));
-  SimulatedCameraOptions options;
-  options.input = args.video;
-  std::optional<SimulatedCamera> video;
-  try {
-    video.emplace(options);
-  } catch (const SourceError& e) {
-    throw CommandError(e.what(), kExitNoInput);
-  }
+  SimulatedCamera video = open_recording(args.video);
   const std::string name = args.video.string();
   Frame frame;
   const FrameMeasurement* result = nullptr;
   Eigen::VectorXf identity;  // the one the frame is fitted on
   for (int n = 0; n <= args.frame; ++n) {
-    const GrabStatus status = video->grab(frame, std::chrono::milliseconds(0));
+    const GrabStatus status = video.grab(frame, std::chrono::milliseconds(0));
     if (status == GrabStatus::kEndOfStream)
       throw CommandError(fmt::format("{}: {} frames, no frame {}", name, n, args.frame), kExitDataError);
     if (status != GrabStatus::kFrame)
-      throw CommandError(fmt::format("{}: frame {}: {}", name, n, video->last_error().value_or("not decoded")),
+      throw CommandError(fmt::format("{}: frame {}: {}", name, n, video.last_error().value_or("not decoded")),
                          kExitDataError);
-    if (video->independent_frames()) processor->forget();
+    if (video.independent_frames()) processor->forget();
     identity = processor->identity();
     result = &processor->process(frame.gray);
   }

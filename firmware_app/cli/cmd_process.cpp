@@ -10,12 +10,13 @@
 #include "core/calibration.hpp"
 #include "core/side_profile.hpp"
 #include "core/statistics.hpp"
+#include "core/voice_training.hpp"
+#include "drivers/audio_file.hpp"
 #include "drivers/clock.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/recording.hpp"
 #include "firmware_app/config/config.hpp"
-#include "core/voice_training.hpp"
-#include "drivers/audio_file.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/paths.hpp"
@@ -58,7 +59,7 @@ struct ProcessOptions {
   int side_neutral_frames = 15;       // its first frames: the neutral pose the reference is fixed on
   std::string timecode;               // the first frame's timecode: adds the timecode column
   double timecode_fps = 25;
-  std::filesystem::path voice;        // a voice model: adds the voice's columns from the clip's sound
+  std::filesystem::path voice;  // a voice model: adds the voice's columns from the clip's sound
 };
 
 /// --voice: the voice model's measures for every frame of the clip, from its sound alone.
@@ -101,8 +102,6 @@ std::optional<std::pair<std::int32_t, TimecodeRate>> timecode_start(const Proces
   return std::pair{*frame, *rate};
 }
 
-SimulatedCamera open_input(const std::filesystem::path& input);
-
 /// The side-camera recording of a take: protrusion_side for each front frame (docs/method.md 4),
 /// the reference fixed on its first frames, which must show the performer at rest.
 class SideInput {
@@ -110,9 +109,9 @@ class SideInput {
   explicit SideInput(const ProcessOptions& options)
       : meter_(SideProfileSettings{.facing =
                                        options.side_facing == "left" ? ProfileFacing::kLeft : ProfileFacing::kRight}),
-        camera_(open_input(options.side)) {
+        camera_(open_recording(options.side)) {
     std::vector<cv::Mat> neutral;
-    SimulatedCamera first(open_input(options.side));
+    SimulatedCamera first(open_recording(options.side));
     Frame frame;
     for (GrabStatus status; static_cast<int>(neutral.size()) < options.side_neutral_frames &&
                             (status = first.grab(frame, std::chrono::milliseconds(0))) != GrabStatus::kEndOfStream;) {
@@ -258,21 +257,6 @@ void print_stats(const StageTimes& times, std::size_t frames, double seconds) {
              static_cast<double>(frames) / seconds);
 }
 
-SimulatedCamera open_input(const std::filesystem::path& input) {
-  std::error_code ec;
-  if (!std::filesystem::exists(input, ec))
-    throw CommandError(fmt::format("{}: no such file or folder", input.string()), kExitNoInput);
-  if (::access(input.c_str(), R_OK | (std::filesystem::is_directory(input, ec) ? X_OK : 0)) != 0)
-    throw CommandError(fmt::format("{}: permission denied", input.string()), kExitNoInput);
-  SimulatedCameraOptions options;  // as fast as possible, no looping
-  options.input = input;
-  try {
-    return SimulatedCamera(options);
-  } catch (const SourceError& e) {
-    throw CommandError(e.what(), kExitDataError);
-  }
-}
-
 /// --config (or the defaults), with the options given on top.
 Config config_for(const ProcessOptions& options) {
   Config config;  // the defaults
@@ -285,7 +269,7 @@ Config config_for(const ProcessOptions& options) {
 
 void run_process(const ProcessOptions& options) {
   const auto timecode = timecode_start(options);
-  SimulatedCamera camera = open_input(options.input);
+  SimulatedCamera camera = open_recording(options.input);
   const Config config = config_for(options);
   // The performer's profile (the defaults without one): the fit's identity, and the signals the
   // ARKit weights of a model without expression shapes come from.
