@@ -24,11 +24,11 @@ inline constexpr int kMaxFitComponents = 40;
 inline constexpr int kMaxFitExpressions = 56;
 
 struct FitSettings {
-  int iterations = 3;     // pose <-> shape alternations per frame (>= 1)
+  int iterations = 10;    // pose <-> shape alternations per frame (>= 1; docs/method.md 3 says why 10)
   double lambda = 1.0;    // shape regulariser; 1 = MAP estimate under the prior alpha ~ N(0, I)
   double sigma_px = 1.0;  // landmark noise standard deviation in pixels
   // Expression models (docs/method.md 3):
-  int sweeps = 20;                   // coordinate-descent sweeps per pose <-> shape iteration (>= 1)
+  int sweeps = 4;                    // coordinate-descent sweeps per pose <-> shape iteration (>= 1)
   int identity_iterations = 10;      // fit_identity: camera <-> identity alternations (>= 1)
   double expression_sigma_mm = 1.0;  // landmark noise on the face, in mm (the residual over the camera scale)
   double expression_prior = 1.0;     // lambda_e: the cost of a shape at full weight, in units of sigma^2

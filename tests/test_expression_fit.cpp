@@ -123,6 +123,10 @@ TEST(ExpressionFit, RecoversRandomMouthWeightsOnARandomIdentity) {
   }
   // The jaw line (F5) is what shows the jaw: without it jawOpen is not recovered.
   EXPECT_LT(jaw_open[1], jaw_open[0]);
+  // The camera <-> expression alternation converges within a frame's fit: 0.034 with the default
+  // 10 alternations, 0.095 with 3, where the camera's scale and pitch kept part of the jaw's
+  // motion (docs/arkit.md, "The alternation must converge").
+  EXPECT_LT(jaw_open[1], 0.05);
 }
 
 // The daemon keeps the model on its landmark vertices (LoadedFiles): the identity, the rest

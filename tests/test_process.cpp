@@ -141,7 +141,7 @@ TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   ASSERT_EQ(run_process(video.string() + " --out " + defaults_out.string(), dir_).exit_code, 0);
   const std::string defaults = file_text(defaults_out);
   ASSERT_FALSE(defaults.empty());
-  EXPECT_EQ(process_with("same", "iterations = 3\nlandmark_set = \"F5\"\nauto_identity_frames = 20\n"), defaults)
+  EXPECT_EQ(process_with("same", "iterations = 10\nlandmark_set = \"F5\"\nauto_identity_frames = 20\n"), defaults)
       << "the defaults are the daemon's defaults";
   EXPECT_NE(process_with("one_iteration", "iterations = 1\n"), defaults) << "[model] iterations reaches the fit";
   EXPECT_NE(process_with("no_jaw_line", "landmark_set = \"F4\"\n"), defaults) << "[model] landmark_set too";
