@@ -40,7 +40,7 @@ bool FaceTracker::acquire(const cv::Mat& gray, Landmarks2D& landmarks) {
   // checks (a face cut by the image border); then the next largest.
   for (const FaceBox& face : detector_.detect(gray)) {
     box_ = face;
-    predictor_.predict(gray, box_, landmarks);
+    predictor_.predict_median(gray, box_, landmarks);  // a detector's box is only roughly placed
     if (accept(gray, landmarks, true)) return true;
   }
   return false;

@@ -3,7 +3,9 @@
 // dlib's HOG frontal face detector runs only to acquire a face (first frame, or after the
 // track was lost): it costs tens of milliseconds and allocates. While tracking, the box
 // comes from the previous frame's landmarks (the camera moves with the head, so the face
-// stays in place) and only the shape predictor runs, which allocates nothing.
+// stays in place) and only the shape predictor runs, which allocates nothing. A detector's
+// box is only roughly placed, so an acquired face's landmarks are the median of seven
+// predictions from boxes around it (ShapePredictor::predict_median, docs/method.md 1).
 //
 // Every tracked frame is validated as the face that was acquired; the predictor returns 68
 // points wherever its box is, so after a cut, a face leaving the frame or a hand over the

@@ -56,6 +56,7 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include <array>
 #include <cstdint>
 #include <istream>
 #include <memory>
@@ -155,6 +156,16 @@ class ShapePredictor {
   /// (CV_8UC1, any stride). Allocates nothing.
   void predict(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out);
 
+  /// The landmarks of a face whose box is only roughly placed (a detector's): per coordinate,
+  /// the median of predict() from `box` and from six boxes around it (scaled by 1 -/+ 5 %,
+  /// shifted by -/+ 3 % of its size across and down). A cascade started once can settle on a
+  /// wrong shape (a half-open mouth on a wide-open one, the jaw on the neck); started from
+  /// several initial shapes, the median drops it (Cao, Wei, Wen & Sun, "Face Alignment by
+  /// Explicit Shape Regression", CVPR 2012: multiple initialisations, median of the results).
+  /// Seven times predict()'s cost; `box` is predicted last, so feature_contrast() and
+  /// last_leaves() are its. Allocates nothing.
+  void predict_median(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out);
+
   /// Standard deviation of the last cascade's feature pixel intensities in the last
   /// predict(): near 0 when the box holds no texture at all (a blank or covered frame).
   float feature_contrast() const;
@@ -172,6 +183,7 @@ class ShapePredictor {
   std::vector<float> shape_;           // current shape estimate, box-normalised
   std::vector<float> feature_pixels_;  // intensities of the current cascade's feature pixels
   std::vector<std::uint8_t> leaves_;
+  std::array<Landmarks2D, 7> starts_;  // predict_median's predictions, one per box
 };
 
 }  // namespace lipdrive

@@ -333,6 +333,7 @@ TEST(LipClosureEvaluation, LfpwPhotographs) {
   }
   const PhotoFigures all = photo_figures(cropped);
   EXPECT_LE(all.point_error, 0.030);
+  EXPECT_LE(all.open_mae, 0.04);  // the bound (0.0451 before acquisition took the median of seven starts)
   EXPECT_LE(all.open_mae, all.landmark_mae) << "open is further from the annotation than the landmark height";
   // Sealed lips read sealed: the median closed mouth has seal > 0.5 and open below 0.01 d.
   std::vector<double> seal = all.closed_seal, open = all.closed_open;
