@@ -612,26 +612,26 @@ void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2
 }
 
 void ShapePredictor::predict_median(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out) {
-  // {scale, shift across, shift down} of each box, in box sizes; `box` itself last.
-  static constexpr std::array<std::array<double, 3>, std::tuple_size_v<decltype(starts_)>> kBoxes{{
-      {0.95, 0, 0}, {1.05, 0, 0}, {1, -0.03, 0}, {1, 0.03, 0}, {1, 0, -0.03}, {1, 0, 0.03}, {1, 0, 0}}};
+  // {scale, shift across, shift down} of the boxes around `box`, in box sizes.
+  static constexpr std::array<std::array<double, 3>, kStarts - 1> kAround{
+      {{0.95, 0, 0}, {1.05, 0, 0}, {1, -0.03, 0}, {1, 0.03, 0}, {1, 0, -0.03}, {1, 0, 0.03}}};
   const double width = static_cast<double>(box.width()), height = static_cast<double>(box.height());
   const double centre_x = 0.5 * static_cast<double>(box.left + box.right);
   const double centre_y = 0.5 * static_cast<double>(box.top + box.bottom);
-  for (std::size_t k = 0; k < kBoxes.size(); ++k) {
-    const auto [scale, across, down] = kBoxes[k];
+  for (std::size_t k = 0; k < kAround.size(); ++k) {
+    const auto [scale, across, down] = kAround[k];
     const double x = centre_x + across * width, y = centre_y + down * height;
     const double half_w = 0.5 * scale * width, half_h = 0.5 * scale * height;
-    const FaceBox start{std::lround(x - half_w), std::lround(y - half_h), std::lround(x + half_w),
-                        std::lround(y + half_h)};
-    predict(gray, k + 1 == kBoxes.size() ? box : start, starts_[k]);
+    const FaceBox around{std::lround(x - half_w), std::lround(y - half_h), std::lround(x + half_w),
+                         std::lround(y + half_h)};
+    predict(gray, around, starts_[k]);
   }
-  std::array<double, std::tuple_size_v<decltype(starts_)>> values;
+  predict(gray, box, starts_[kStarts - 1]);  // last: feature_contrast() and last_leaves() are the box's
+  std::array<double, kStarts> values;
   for (Eigen::Index i = 0; i < out.size(); ++i) {
-    for (std::size_t k = 0; k < values.size(); ++k) values[k] = starts_[k](i);
-    const auto middle = values.begin() + static_cast<long>(values.size() / 2);
-    std::nth_element(values.begin(), middle, values.end());
-    out(i) = *middle;
+    for (int k = 0; k < kStarts; ++k) values[k] = starts_[k](i);
+    std::nth_element(values.begin(), values.begin() + kStarts / 2, values.end());
+    out(i) = values[kStarts / 2];
   }
 }
 

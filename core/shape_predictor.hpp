@@ -183,7 +183,8 @@ class ShapePredictor {
   std::vector<float> shape_;           // current shape estimate, box-normalised
   std::vector<float> feature_pixels_;  // intensities of the current cascade's feature pixels
   std::vector<std::uint8_t> leaves_;
-  std::array<Landmarks2D, 7> starts_;  // predict_median's predictions, one per box
+  static constexpr int kStarts = 7;          // predict_median's boxes
+  std::array<Landmarks2D, kStarts> starts_;  // their predictions, `box` last
 };
 
 }  // namespace lipdrive
