@@ -56,6 +56,7 @@ double contour_depth(const Landmarks2D& p, const std::array<int, N>& contour, co
 /// fractional).
 struct Profile {
   std::array<float, LipContactSettings::kSamples> luma{};
+  std::array<float, LipContactSettings::kSamples> red{};  // Cr - 128; 0 without colour
   double outer_top = 0, inner_top = 0, inner_bottom = 0, outer_bottom = 0;
   double px_per_sample = 0;
 };
@@ -65,8 +66,9 @@ struct Profile {
 /// smooths the lips' own fine texture (creases, gloss) that a high-resolution image shows.
 constexpr int kTaps = 4;
 
-bool read_profile(const cv::Mat& gray, const Landmarks2D& p, const FaceAxes& axes, const Vec2& base, double reach,
-                  double width, Profile& out) {
+/// `cr`: the Cr plane, or null (no colour: `red` stays 0).
+bool read_profile(const cv::Mat& gray, const cv::Mat* cr, const Landmarks2D& p, const FaceAxes& axes, const Vec2& base,
+                  double reach, double width, Profile& out) {
   const double outer_top = contour_depth(p, kOuterUpper, axes, base);
   const double outer_bottom = contour_depth(p, kOuterLower, axes, base);
   const double inner_top = contour_depth(p, kInnerUpper, axes, base);
@@ -77,13 +79,15 @@ bool read_profile(const cv::Mat& gray, const Landmarks2D& p, const FaceAxes& axe
   const double step = (last - first) / (n - 1);
   for (int i = 0; i < n; ++i) {
     const Vec2 at = base + (first + i * step) * axes.down;
-    float sum = 0;
+    float sum = 0, red = 0;
     for (int k = 0; k < kTaps; ++k) {
       const Vec2 tap = at + ((k + 0.5) / kTaps - 0.5) * width * axes.across;
       sum += sample_luma(gray, tap.x(), tap.y());
+      if (cr != nullptr) red += sample_chroma(*cr, gray, tap.x(), tap.y()) - 128.0f;
     }
     out.luma[i] = sum / kTaps;
-    if (std::isnan(out.luma[i])) return false;
+    out.red[i] = red / kTaps;
+    if (std::isnan(out.luma[i]) || std::isnan(out.red[i])) return false;
   }
   const auto index = [&](double depth) { return (depth - first) / step; };
   out.outer_top = index(outer_top);
@@ -105,13 +109,15 @@ Region inner_region(const Profile& profile, double margin_samples) {
           static_cast<int>(std::floor(std::min(profile.outer_bottom, profile.inner_bottom + margin_samples)))};
 }
 
-/// The darkness of the region against the lips, integrated along the profile: the sum of
-/// (1 - luma / lip luma) over its samples darker than the lips, in pixels. Blur spreads the
-/// line between sealed lips but keeps its integral; a cavity adds its contrast times its
-/// height, with no threshold on how dark it must be.
-double darkness_px(const Profile& profile, const Region& region, double lip_luma) {
+/// How far the region falls short of the lips, integrated along the profile: the sum of
+/// (1 - value / lip value) over its samples below the lips', in pixels. With the luma that is
+/// the darkness: blur spreads the line between sealed lips but keeps its integral, and a cavity
+/// adds its contrast times its height, with no threshold on how dark it must be. With Cr - 128
+/// it is the pallor: teeth and the mouth's inside are less red than the lips.
+double deficit_px(const Profile& profile, const std::array<float, LipContactSettings::kSamples>& values,
+                  const Region& region, double lip_value) {
   double sum = 0;
-  for (int i = region.first; i <= region.last; ++i) sum += std::max(0.0, 1.0 - profile.luma[i] / lip_luma);
+  for (int i = region.first; i <= region.last; ++i) sum += std::max(0.0, 1.0 - values[i] / lip_value);
   return sum * profile.px_per_sample;
 }
 
@@ -133,9 +139,10 @@ double excess_variation(const Profile& profile, const Region& region, double lip
 
 }  // namespace
 
-LipGap measure_lip_gap(const cv::Mat& gray, const Landmarks2D& p, const LipContactSettings& s) {
+LipGap measure_lip_gap(const cv::Mat& gray, const cv::Mat& cr, const Landmarks2D& p, const LipContactSettings& s) {
   LipGap result;
   if (gray.empty() || gray.type() != CV_8UC1 || !p.allFinite()) return result;
+  const bool chroma = !cr.empty() && cr.type() == CV_8UC1 && cr.cols <= gray.cols && cr.rows <= gray.rows;
   const double d = (0.5 * (p.col(ibug::kRightEyeInner) + p.col(ibug::kLeftEyeInner)) - p.col(ibug::kNoseTip)).norm();
   if (!(d > 1)) return result;
   const FaceAxes axes = face_axes(p);
@@ -143,43 +150,55 @@ LipGap measure_lip_gap(const cv::Mat& gray, const Landmarks2D& p, const LipConta
 
   constexpr int kColumns = LipContactSettings::kColumns, n = LipContactSettings::kSamples;
   std::array<Profile, kColumns> profiles;
-  std::array<double, kColumns * n> band{};  // lip band samples of every profile, for their median
+  std::array<double, kColumns * n> band{}, band_red{};  // lip band samples of every profile, for their medians
   int band_count = 0;
   const Vec2 right = p.col(ibug::kInnerCornerRight), left = p.col(ibug::kInnerCornerLeft);
   const double column_width = s.column_span * (left - right).norm() / kColumns;
   for (int c = 0; c < kColumns; ++c) {
     const double t = 0.5 + s.column_span * (static_cast<double>(c) / (kColumns - 1) - 0.5);
     Profile& profile = profiles[c];
-    if (!read_profile(gray, p, axes, right + t * (left - right), reach, column_width, profile)) return result;
+    if (!read_profile(gray, chroma ? &cr : nullptr, p, axes, right + t * (left - right), reach, column_width, profile))
+      return result;
     // The lip bands: from each outer contour to the inner contour on its side.
     for (int i = 0; i < n; ++i) {
       const bool upper = i >= profile.outer_top && i <= profile.inner_top;
       const bool lower = i >= profile.inner_bottom && i <= profile.outer_bottom;
-      if (upper || lower) band[band_count++] = profile.luma[i];
+      if (upper || lower) {
+        band_red[band_count] = profile.red[i];
+        band[band_count++] = profile.luma[i];
+      }
     }
   }
   if (band_count < kColumns * 2) return result;
   result.lip_luma = median(std::span(band).first(static_cast<std::size_t>(band_count)));
   if (result.lip_luma < 8) return result;  // a black frame: nothing to compare against
+  result.lip_red = median(std::span(band_red).first(static_cast<std::size_t>(band_count)));
+  result.colour = chroma && result.lip_red >= s.min_lip_red;
 
-  std::array<double, kColumns> darkness{}, textures{};
+  std::array<double, kColumns> darkness{}, textures{}, pallor{};
   for (int c = 0; c < kColumns; ++c) {
     const Profile& profile = profiles[c];
     const Region region = inner_region(profile, s.margin * d / profile.px_per_sample);
     if (region.last < region.first) return result;
-    darkness[c] = std::max(0.0, darkness_px(profile, region, result.lip_luma) - s.line_darkness_px) / d;
+    darkness[c] = std::max(0.0, deficit_px(profile, profile.luma, region, result.lip_luma) - s.line_darkness_px) / d;
     textures[c] = excess_variation(profile, region, result.lip_luma);
+    if (result.colour)
+      pallor[c] = std::max(0.0, deficit_px(profile, profile.red, region, result.lip_red) - s.line_pallor_px) / d;
   }
   // Medians over the profiles: one profile on a lip crease or a stray highlight does not decide.
   result.darkness = median(darkness);
   result.texture = median(textures);
+  result.pallor = median(pallor);
   result.valid = true;
   return result;
 }
 
 double seal_probability(const LipGap& gap, double landmark_height, const LipContactSettings& s) {
   if (!gap.valid) return 0;
-  const double evidence = std::max(gap.darkness / s.open_darkness, gap.texture / s.open_texture);
+  // With colour the pallor tells teeth and the mouth's inside from the lips; without it the
+  // luma's texture stands in for it.
+  const double apart = gap.colour ? gap.pallor / s.open_pallor : gap.texture / s.open_texture;
+  const double evidence = std::max(gap.darkness / s.open_darkness, apart);
   const double pixels = 1.0 / (1.0 + std::exp((evidence - 1) / s.seal_softness));
   const double plausible = 1.0 / (1.0 + std::exp((landmark_height - s.max_sealed_height) / s.height_softness));
   return pixels * plausible;

@@ -19,6 +19,11 @@
 //  - texture: how far the profile there departs from a single valley (down to the line, up
 //    again): teeth between the lips add a bright band and a second dark line, even where they
 //    are hardly brighter than the lips (grey, evenly lit faces).
+// With a colour camera (a Cr plane beside the luma) a third, which replaces the texture:
+//  - pallor: the same integral of how much less red than the lips each sample is
+//    (1 - Cr' / lip Cr', Cr' = Cr - 128). Teeth and the mouth's inside are not lip-coloured,
+//    however grey or evenly lit, while the lips' own shading (a blurred upper lip reads lip,
+//    bright, dark like teeth in luma) keeps their colour.
 // seal falls from 1 to 0 as the stronger of the two passes its threshold, and only while the
 // landmarks' own inner-lip height is one a lagging closure can show (<= 0.3 d). open is the
 // landmark inner-lip height (the image, not the fit: the fit loses closures the landmarks
@@ -52,6 +57,12 @@ struct LipContactSettings {
   /// thresholds.
   double open_darkness = 0.025;
   double open_texture = 0.05;
+  /// With colour: the pallor of the line between sealed lips (pixels x relative pallor), taken
+  /// off the pallor integral; the pixels say "apart" at pallor >= open_pallor (over d). Lips
+  /// whose Cr' is under min_lip_red (grey lips, a camera's colour too weak) give no pallor.
+  double line_pallor_px = 0.5;
+  double open_pallor = 0.025;
+  double min_lip_red = 4;
   double seal_softness = 0.25;
   /// Landmark inner-lip heights (H/d) above this are wider than any lagging closure: no seal.
   double max_sealed_height = 0.3;
@@ -64,11 +75,16 @@ struct LipGap {
   double darkness = 0;  // median over the profiles of the darkness integral where the lips meet, over d
   double texture = 0;   // median excess variation there (teeth), over the lips' luma
   double lip_luma = 0;  // median luma of the lip bands
+  bool colour = false;  // the pallor below was measured (a Cr plane, red enough lips)
+  double pallor = 0;    // median over the profiles of the pallor integral where the lips meet, over d
+  double lip_red = 0;   // median Cr - 128 of the lip bands
 };
 
-/// The gap between the lips in the luma image `gray` (CV_8UC1) of a face with `landmarks`.
-/// Allocates nothing; about 1,000 bilinear taps.
-LipGap measure_lip_gap(const cv::Mat& gray, const Landmarks2D& landmarks, const LipContactSettings& settings = {});
+/// The gap between the lips in the luma image `gray` (CV_8UC1) of a face with `landmarks`, and
+/// its red-difference chroma `cr` (CV_8UC1 at the luma's size or a whole fraction of it;
+/// empty from a monochrome camera). Allocates nothing; about 1,000 bilinear taps per plane.
+LipGap measure_lip_gap(const cv::Mat& gray, const cv::Mat& cr, const Landmarks2D& landmarks,
+                       const LipContactSettings& settings = {});
 
 /// Probability in [0, 1] that the lips touch, from the pixel evidence and the landmarks'
 /// inner-lip height (H/d); 0 without pixel evidence.

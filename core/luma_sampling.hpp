@@ -1,4 +1,4 @@
-// Reading the luma plane between pixel centres, for measures that follow the landmarks at
+// Reading an 8-bit image plane between pixel centres, for measures that follow the landmarks at
 // sub-pixel positions (lip contact, face appearance check).
 #pragma once
 
@@ -23,6 +23,13 @@ inline float sample_luma(const cv::Mat& gray, double x, double y) {
   const float upper = top[0] + ax * (static_cast<float>(top[1]) - top[0]);
   const float lower = bottom[0] + ax * (static_cast<float>(bottom[1]) - bottom[0]);
   return upper + ay * (lower - upper);
+}
+
+/// The same for a plane sampled more coarsely than the luma (a camera's 4:2:0 or 4:2:2 chroma):
+/// (x, y) in luma pixels, the planes' centres aligned.
+inline float sample_chroma(const cv::Mat& plane, const cv::Mat& luma, double x, double y) {
+  const double sx = static_cast<double>(plane.cols) / luma.cols, sy = static_cast<double>(plane.rows) / luma.rows;
+  return sample_luma(plane, (x + 0.5) * sx - 0.5, (y + 0.5) * sy - 0.5);
 }
 
 }  // namespace lipdrive

@@ -1,11 +1,12 @@
 // What the FFmpeg wrappers share (audio_file, video_file, image_codec): owning handles for
-// FFmpeg's C objects, its error text, and a decoded picture's luma.
+// FFmpeg's C objects, its error text, and a decoded picture's luma and red-difference chroma.
 #pragma once
 
 extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
 #include <libavutil/error.h>
+#include <libavutil/pixdesc.h>
 #include <libswscale/swscale.h>
 }
 
@@ -41,14 +42,18 @@ using Codec = std::unique_ptr<AVCodecContext, CodecFreer>;
 using Packet = std::unique_ptr<AVPacket, PacketFreer>;
 using Frame = std::unique_ptr<AVFrame, FrameFreer>;
 
-/// A decoded picture's luma as 8-bit full range: Y' expanded from video range where the
-/// picture is in it, BT.601 luma of an RGB picture. Keeps its scaler while the format holds.
-class LumaConverter {
+/// A decoded picture's planes for the tracker: its luma as 8-bit full range (Y' expanded from
+/// video range where the picture is in it, BT.601 luma of an RGB picture) and its Cr. Keeps its
+/// scalers while the format holds.
+class PictureConverter {
  public:
-  LumaConverter() = default;
-  ~LumaConverter() { sws_freeContext(scaler_); }
-  LumaConverter(const LumaConverter&) = delete;
-  LumaConverter& operator=(const LumaConverter&) = delete;
+  PictureConverter() = default;
+  ~PictureConverter() {
+    sws_freeContext(scaler_);
+    sws_freeContext(chroma_scaler_);
+  }
+  PictureConverter(const PictureConverter&) = delete;
+  PictureConverter& operator=(const PictureConverter&) = delete;
 
   /// False when libswscale cannot convert the picture's format.
   bool convert(const AVFrame& picture, cv::Mat& gray) {
@@ -66,6 +71,48 @@ class LumaConverter {
     return sws_scale(scaler_, picture.data, picture.linesize, 0, picture.height, planes, strides) == picture.height;
   }
 
+  /// The picture's red-difference chroma (Cr; V of Y'UV) as it was coded, at its own resolution
+  /// (half the luma's across and down for 4:2:0); that of an RGB picture through BT.601, at
+  /// full size. Released for a picture without colour (gray formats). False when libswscale
+  /// cannot convert the picture's format.
+  bool convert_cr(const AVFrame& picture, cv::Mat& cr) {
+    const auto format = static_cast<AVPixelFormat>(picture.format);
+    const AVPixFmtDescriptor* desc = av_pix_fmt_desc_get(format);
+    if (desc == nullptr) return false;
+    if (desc->nb_components < 3) {
+      cr.release();
+      return true;
+    }
+    const AVComponentDescriptor& v = desc->comp[2];
+    if ((desc->flags & (AV_PIX_FMT_FLAG_RGB | AV_PIX_FMT_FLAG_PAL)) == 0 && v.depth == 8 && v.shift == 0) {
+      // Y'CbCr with 8-bit Cr, planar (step 1) or interleaved with Cb (NV12: step 2).
+      const int width = AV_CEIL_RSHIFT(picture.width, desc->log2_chroma_w);
+      const int height = AV_CEIL_RSHIFT(picture.height, desc->log2_chroma_h);
+      cr.create(height, width, CV_8UC1);
+      for (int y = 0; y < height; ++y) {
+        const std::uint8_t* from =
+            picture.data[v.plane] + static_cast<std::ptrdiff_t>(y) * picture.linesize[v.plane] + v.offset;
+        std::uint8_t* to = cr.ptr<std::uint8_t>(y);
+        for (int x = 0; x < width; ++x) to[x] = from[x * v.step];
+      }
+      return true;
+    }
+    chroma_scaler_ =
+        sws_getCachedContext(chroma_scaler_, picture.width, picture.height, without_range(format), picture.width,
+                             picture.height, AV_PIX_FMT_YUV444P, SWS_POINT, nullptr, nullptr, nullptr);
+    if (chroma_scaler_ == nullptr) return false;
+    const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);  // full-range Cr, as JPEG codes it
+    sws_setColorspaceDetails(chroma_scaler_, coefficients, 1, coefficients, 1, 0, 1 << 16, 1 << 16);
+    planes_.create(3 * picture.height, picture.width, CV_8UC1);  // Y', Cb, Cr one under the other
+    const int rows = picture.height;
+    std::uint8_t* planes[] = {planes_.ptr(0), planes_.ptr(rows), planes_.ptr(2 * rows)};
+    const int strides[] = {static_cast<int>(planes_.step[0]), static_cast<int>(planes_.step[0]),
+                           static_cast<int>(planes_.step[0])};
+    if (sws_scale(chroma_scaler_, picture.data, picture.linesize, 0, rows, planes, strides) != rows) return false;
+    planes_.rowRange(2 * rows, 3 * rows).copyTo(cr);
+    return true;
+  }
+
   /// JPEG's full-range formats as the same layout in video range (libswscale takes the range
   /// apart, and warns about the old formats that carry it).
   static AVPixelFormat without_range(AVPixelFormat format) {
@@ -81,6 +128,8 @@ class LumaConverter {
 
  private:
   SwsContext* scaler_ = nullptr;
+  SwsContext* chroma_scaler_ = nullptr;  // pictures whose Cr is not coded as such (RGB)
+  cv::Mat planes_;                       // their Y'CbCr, kept while the size holds
 };
 
 }  // namespace lipdrive::ffmpeg

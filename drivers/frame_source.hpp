@@ -17,6 +17,9 @@ namespace lipdrive {
 struct Frame {
   cv::Mat gray;                      // 8-bit luma plane (CV_8UC1); may point into the source's
                                      // buffers: valid until the next grab() on the same source
+  cv::Mat cr;                        // 8-bit red-difference chroma (Cr, 128 = no colour) at the
+                                     // luma's size or a whole fraction of it (4:2:0, 4:2:2);
+                                     // empty from a monochrome camera; valid as long as `gray`
   std::int64_t capture_time_ns = 0;  // CLOCK_MONOTONIC at capture
   std::uint64_t sequence = 0;        // counts delivered frames from 0; gaps = frames lost
   double media_time_s = 0;           // position in the recording (replay) or since start (live)

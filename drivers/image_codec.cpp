@@ -54,7 +54,7 @@ Scaler scaler_for(const cv::Mat& image, const AVFrame& picture) {
   av_opt_set_int(scaler.get(), "src_format", from, 0);
   av_opt_set_int(scaler.get(), "dstw", image.cols, 0);
   av_opt_set_int(scaler.get(), "dsth", image.rows, 0);
-  av_opt_set_int(scaler.get(), "dst_format", ffmpeg::LumaConverter::without_range(to), 0);
+  av_opt_set_int(scaler.get(), "dst_format", ffmpeg::PictureConverter::without_range(to), 0);
   av_opt_set_int(scaler.get(), "sws_flags", SWS_POINT, 0);
   av_opt_set_int(scaler.get(), "src_range", 1, 0);
   av_opt_set_int(scaler.get(), "dst_range", 1, 0);
@@ -111,7 +111,7 @@ struct JpegDecoder::Codec {
   ffmpeg::Codec codec;
   ffmpeg::Packet packet{av_packet_alloc()};
   ffmpeg::Frame picture{av_frame_alloc()};
-  ffmpeg::LumaConverter luma;
+  ffmpeg::PictureConverter planes;
   std::vector<std::uint8_t> padded;  // the image and the zero bytes FFmpeg's decoders may read past it
 };
 
@@ -126,18 +126,22 @@ JpegDecoder::JpegDecoder() : codec_(std::make_unique<Codec>()) {
 
 JpegDecoder::~JpegDecoder() = default;
 
-bool JpegDecoder::decode(std::span<const std::uint8_t> jpeg, cv::Mat& gray) {
+bool JpegDecoder::decode(std::span<const std::uint8_t> jpeg, cv::Mat& gray, cv::Mat& cr) {
   Codec& c = *codec_;
   c.padded.assign(jpeg.begin(), jpeg.end());
   c.padded.resize(jpeg.size() + AV_INPUT_BUFFER_PADDING_SIZE, 0);
   c.packet->data = c.padded.data();  // not owned by the packet
   c.packet->size = static_cast<int>(jpeg.size());
   const bool decoded = avcodec_send_packet(c.codec.get(), c.packet.get()) == 0 &&
-                       avcodec_receive_frame(c.codec.get(), c.picture.get()) == 0 && c.luma.convert(*c.picture, gray);
+                       avcodec_receive_frame(c.codec.get(), c.picture.get()) == 0 &&
+                       c.planes.convert(*c.picture, gray) && c.planes.convert_cr(*c.picture, cr);
   c.packet->data = nullptr;
   c.packet->size = 0;
   av_frame_unref(c.picture.get());
-  if (!decoded) gray.release();
+  if (!decoded) {
+    gray.release();
+    cr.release();
+  }
   return decoded;
 }
 

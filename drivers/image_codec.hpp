@@ -15,7 +15,7 @@
 
 namespace lipdrive {
 
-/// Decodes JPEG images one after another (a camera's MJPEG stream) to luma.
+/// Decodes JPEG images one after another (a camera's MJPEG stream) to luma and Cr.
 class JpegDecoder {
  public:
   JpegDecoder();
@@ -23,9 +23,10 @@ class JpegDecoder {
   JpegDecoder(const JpegDecoder&) = delete;
   JpegDecoder& operator=(const JpegDecoder&) = delete;
 
-  /// The luma of one JPEG image into `gray` (its buffer kept while the size holds); false when
-  /// the bytes are not a decodable JPEG image (`gray` is then left empty, never stale).
-  bool decode(std::span<const std::uint8_t> jpeg, cv::Mat& gray);
+  /// The luma of one JPEG image into `gray` and its Cr into `cr` (buffers kept while the size
+  /// holds; `cr` empty for a gray JPEG); false when the bytes are not a decodable JPEG image
+  /// (both are then left empty, never stale).
+  bool decode(std::span<const std::uint8_t> jpeg, cv::Mat& gray, cv::Mat& cr);
 
  private:
   struct Codec;

@@ -1,5 +1,6 @@
 // A libcamera camera (CSI sensors behind an ISP, e.g. on Raspberry Pi boards) as a
-// FrameSource: one Viewfinder stream in a luma-first format, luma plane only.
+// FrameSource: one Viewfinder stream in a luma-first format, luma plane only (no Cr: the lip
+// contact reads the luma alone, as from a monochrome camera).
 //
 // Thread model: one thread owns a LibcameraCamera and makes every call on it. libcamera
 // completes requests on a thread of its own (the CameraManager's); its requestCompleted and

@@ -326,11 +326,19 @@ void V4l2Camera::start_stream() {
   stream_ = StreamOpener(system_, path_).open(options_, negotiated);
   negotiated_ = std::move(negotiated);
   stream_started_ = false;
-  // YUYV's luma plane is gathered here, allocated once per stream; MJPEG's decoded into it.
+  // YUYV's luma and the Cr of YUYV and NV12 are gathered here, allocated once per stream;
+  // MJPEG's are decoded into them.
+  const int height = static_cast<int>(negotiated_.height), width = static_cast<int>(negotiated_.width);
   if (negotiated_.format == PixelFormat::kYuyv)
-    luma_.create(static_cast<int>(negotiated_.height), static_cast<int>(negotiated_.width), CV_8UC1);
+    luma_.create(height, width, CV_8UC1);
   else
     luma_.release();
+  if (negotiated_.format == PixelFormat::kYuyv)
+    cr_.create(height, width / 2, CV_8UC1);
+  else if (negotiated_.format == PixelFormat::kNv12)
+    cr_.create(height / 2, width / 2, CV_8UC1);
+  else
+    cr_.release();
   if (negotiated_.format == PixelFormat::kMjpeg && !jpeg_) jpeg_ = std::make_unique<JpegDecoder>();
 }
 
@@ -377,6 +385,7 @@ GrabStatus V4l2Camera::deliver(const v4l2_buffer& buffer, Frame& frame) {
     return GrabStatus::kCorrupt;
   }
   frame.gray = gray;
+  frame.cr = cr_;
   frame.capture_time_ns = capture_time_ns(buffer);
   if (first_capture_ns_ < 0) first_capture_ns_ = frame.capture_time_ns;
   frame.sequence = sequence;
@@ -406,15 +415,21 @@ cv::Mat V4l2Camera::luma_of(const void* data, std::uint32_t bytes_used) {
   const int height = static_cast<int>(negotiated_.height);
   void* pixels = const_cast<void*>(data);  // cv::Mat has no const header; nothing writes to it
   switch (negotiated_.format) {
-    case PixelFormat::kGrey:
-    case PixelFormat::kNv12:  // the Y plane comes first, full size
+    case PixelFormat::kGrey: return cv::Mat(height, width, CV_8UC1, pixels, negotiated_.bytes_per_line);
+    case PixelFormat::kNv12: {  // the Y plane, full size, then Cb Cr pairs at half size both ways
+      const std::size_t luma_bytes = static_cast<std::size_t>(negotiated_.bytes_per_line) * height;
+      cv::extractChannel(cv::Mat(height / 2, width / 2, CV_8UC2, static_cast<std::uint8_t*>(pixels) + luma_bytes,
+                                 negotiated_.bytes_per_line),
+                         cr_, 1);
       return cv::Mat(height, width, CV_8UC1, pixels, negotiated_.bytes_per_line);
-    case PixelFormat::kYuyv:  // Y0 U Y1 V: luma is channel 0 of two-channel pixels
+    }
+    case PixelFormat::kYuyv:  // Y0 U Y1 V: luma is channel 0 of two-channel pixels, Cr channel 3 of pairs
       cv::extractChannel(cv::Mat(height, width, CV_8UC2, pixels, negotiated_.bytes_per_line), luma_, 0);
+      cv::extractChannel(cv::Mat(height, width / 2, CV_8UC4, pixels, negotiated_.bytes_per_line), cr_, 3);
       return luma_;
     case PixelFormat::kMjpeg:
       // Not a JPEG: an empty image (never the previous frame's), which counts as corrupt.
-      jpeg_->decode({static_cast<const std::uint8_t*>(data), bytes_used}, luma_);
+      jpeg_->decode({static_cast<const std::uint8_t*>(data), bytes_used}, luma_, cr_);
       return luma_;
     case PixelFormat::kAuto: break;
   }

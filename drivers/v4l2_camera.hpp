@@ -1,13 +1,14 @@
 // A Video4Linux2 capture device (USB/UVC cameras, CSI bridges with a single-planar
-// capture node) as a FrameSource: memory-mapped streaming, luma plane only.
+// capture node) as a FrameSource: memory-mapped streaming, the luma and Cr planes.
 //
 // Thread model: one thread owns a V4l2Camera and makes every call on it (construction,
 // grab, accessors, destruction). It starts no threads and takes no locks; the device is
 // opened non-blocking and grab() waits in poll() with the caller's timeout.
 //
 // Lifetime of frames: Frame::gray points into a mmapped driver buffer (GREY, NV12), into
-// a luma buffer the camera reuses (YUYV) or into a freshly decoded image (MJPEG). The
-// driver buffer is handed back at the start of the next grab(), so a frame is valid until then.
+// a luma buffer the camera reuses (YUYV) or into a freshly decoded image (MJPEG); Frame::cr
+// (empty for GREY) into a Cr buffer the camera reuses. The driver buffer is handed back at the
+// start of the next grab(), so a frame is valid until then.
 //
 // Disconnects: when the device goes away (ENODEV/EIO/ENXIO, or POLLERR) every resource is
 // released at once and grab() returns kDisconnected; later grabs reopen the device with
@@ -114,6 +115,7 @@ class V4l2Camera final : public FrameSource {
   V4l2Counters counters_;
   std::unique_ptr<detail::V4l2Stream> stream_;
   cv::Mat luma_;  // YUYV's luma plane or MJPEG's decoded one, reused for every frame
+  cv::Mat cr_;    // the Cr plane of YUYV, NV12 or MJPEG, the same; empty for GREY
   std::unique_ptr<JpegDecoder> jpeg_;  // MJPEG streams
 
   // Sequence bookkeeping: Frame::sequence keeps counting across reconnects, and the driver

@@ -17,13 +17,11 @@ struct VideoFile::Decoder {
   ffmpeg::Codec codec;
   ffmpeg::Packet packet{av_packet_alloc()};
   ffmpeg::Frame picture{av_frame_alloc()};
-  ffmpeg::LumaConverter luma;
+  ffmpeg::PictureConverter planes;
   int stream = -1;
   bool draining = false;  // the demuxer is at its end; the decoder gives back what it holds
 
-  [[noreturn]] void fail(const std::string& reason) const {
-    throw MediaError(fmt::format("{}: {}", name, reason));
-  }
+  [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
 
   /// The next decoded picture; false at the end (or where a damaged file stops decoding).
   bool next() {
@@ -78,20 +76,18 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
 
 VideoFile::~VideoFile() = default;
 
-bool VideoFile::read(cv::Mat& gray) {
+bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   Decoder& d = *decoder_;
   if (!d.next()) return false;
-  const bool converted = d.luma.convert(*d.picture, gray);
+  const bool converted = d.planes.convert(*d.picture, gray) && d.planes.convert_cr(*d.picture, cr);
   av_frame_unref(d.picture.get());
-  if (!converted) d.fail("cannot convert the picture to luma");
+  if (!converted) d.fail("cannot convert the picture to luma and chroma");
   return true;
 }
 
-cv::Mat read_gray_image(const std::filesystem::path& file) {
+void read_image(const std::filesystem::path& file, cv::Mat& gray, cv::Mat& cr) {
   VideoFile image(file);
-  cv::Mat gray;
-  if (!image.read(gray)) throw MediaError(fmt::format("{}: cannot decode the image", file.string()));
-  return gray;
+  if (!image.read(gray, cr)) throw MediaError(fmt::format("{}: cannot decode the image", file.string()));
 }
 
 }  // namespace lipdrive

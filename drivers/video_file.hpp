@@ -2,8 +2,8 @@
 // FFmpeg's libraries (libavformat, libavcodec, libswscale) to 8-bit luma: what the simulated
 // camera replays and the offline commands read. An image is a video of one frame.
 //
-// Luma, not colour: a Y'CbCr source gives its Y' plane expanded to full range (0..255), an
-// RGB source BT.601 luma, so a replayed clip looks to the tracker as a camera's luma plane does.
+// Planes as a camera gives them: a Y'CbCr source gives its Y' plane expanded to full range
+// (0..255) and its Cr plane as coded, an RGB source BT.601 luma and Cr; a gray source no Cr.
 #pragma once
 
 #include <opencv2/core/mat.hpp>
@@ -34,9 +34,10 @@ class VideoFile {
   /// Frames the file declares (or its duration implies); 0 when unknown.
   std::int64_t frame_count() const { return frame_count_; }
 
-  /// The next frame's luma into `gray` (its buffer is kept while the size holds). False at the
-  /// end of the file, and where the rest of a damaged file cannot be decoded.
-  bool read(cv::Mat& gray);
+  /// The next frame's luma into `gray` and its Cr into `cr` (empty without colour; buffers kept
+  /// while the size holds). False at the end of the file, and where the rest of a damaged file
+  /// cannot be decoded.
+  bool read(cv::Mat& gray, cv::Mat& cr);
 
  private:
   struct Decoder;
@@ -45,8 +46,8 @@ class VideoFile {
   std::int64_t frame_count_ = 0;
 };
 
-/// The luma of the first frame of an image (or video) file. Throws MediaError naming the file
-/// when it cannot be opened or holds no decodable frame.
-cv::Mat read_gray_image(const std::filesystem::path& file);
+/// The luma and Cr of the first frame of an image (or video) file. Throws MediaError naming
+/// the file when it cannot be opened or holds no decodable frame.
+void read_image(const std::filesystem::path& file, cv::Mat& gray, cv::Mat& cr);
 
 }  // namespace lipdrive

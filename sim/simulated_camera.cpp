@@ -62,7 +62,7 @@ SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options, ReplayClock* cl
     kind_ = Kind::kImages;
     images_ = {input};
     try {
-      single_image_ = read_gray_image(input);
+      read_image(input, single_image_, single_image_cr_);
     } catch (const MediaError& e) {
       throw SourceError(e.what());
     }
@@ -199,7 +199,7 @@ GrabStatus SimulatedCamera::read_frame(Frame& frame) {
 }
 
 GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
-  if (!video_->read(gray_)) {
+  if (!video_->read(gray_, cr_)) {
     if (expected_frames_ > 0 && position_ < expected_frames_) {
       last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(position_) + " of " +
                     std::to_string(expected_frames_) + " (the file is damaged or truncated)";
@@ -209,6 +209,7 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
     return GrabStatus::kEndOfStream;
   }
   frame.gray = gray_;
+  frame.cr = cr_;
   frame.media_time_s = static_cast<double>(position_) / frame_rate_;
   frame.source = video_path_;
   ++position_;
@@ -222,15 +223,17 @@ GrabStatus SimulatedCamera::read_image_frame(Frame& frame) {
   frame.source = image_names_[index];
   if (!single_image_.empty()) {
     frame.gray = single_image_;
+    frame.cr = single_image_cr_;
     return GrabStatus::kFrame;
   }
   try {
-    gray_ = read_gray_image(images_[index]);
+    read_image(images_[index], gray_, cr_);
   } catch (const MediaError& e) {
     last_error_ = e.what();
     return GrabStatus::kCorrupt;
   }
   frame.gray = gray_;
+  frame.cr = cr_;
   return GrabStatus::kFrame;
 }
 

@@ -95,13 +95,13 @@ class SimulatedCamera : public FrameSource {
   Kind kind_;
   std::string video_path_;  // `source` of video frames
   std::vector<std::filesystem::path> images_;
-  std::vector<std::string> image_names_;  // `source` of image frames (file names)
-  cv::Mat single_image_;                  // a lone image is decoded once, up front
+  std::vector<std::string> image_names_;    // `source` of image frames (file names)
+  cv::Mat single_image_, single_image_cr_;  // a lone image is decoded once, up front
 
   std::unique_ptr<VideoFile> video_;  // the open video (reopened to rewind)
   double frame_rate_ = 0;
   std::int64_t expected_frames_ = 0;  // container's frame count, 0 if unknown
-  cv::Mat gray_;                      // delivered luma plane, reused across frames
+  cv::Mat gray_, cr_;                 // delivered luma and Cr planes, reused across frames
 
   std::int64_t position_ = 0;   // index of the next frame within the recording
   std::uint64_t sequence_ = 0;  // next sequence number, never reset by looping

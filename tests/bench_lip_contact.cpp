@@ -82,7 +82,7 @@ void compare_face(const TrackedFrames& clip, std::size_t f) {
 }
 
 void lip_contact(const TrackedFrames& clip, std::size_t f) {
-  const LipGap gap = measure_lip_gap(clip.frames[f], clip.landmarks[f]);
+  const LipGap gap = measure_lip_gap(clip.frames[f], cv::Mat(), clip.landmarks[f]);
   const double seal = seal_probability(gap, clip.heights[f]);
   benchmark::DoNotOptimize(fused_opening(clip.heights[f], seal));
 }

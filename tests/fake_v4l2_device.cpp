@@ -377,12 +377,30 @@ void FakeV4l2Device::encode(const cv::Mat& luma, std::vector<std::uint8_t>& memo
     for (int x = 0; x < luma.cols; ++x) {
       if (is_packed_yuv(state_.fourcc)) {
         row[2 * x] = luma.at<std::uint8_t>(y, x);
-        row[2 * x + 1] = x % 2 ? 0x40 : 0xC0;  // V, U: far from any luma the pattern has here
+        // U (even pixels), V (odd): U fixed, V the pair's expected_cr
+        row[2 * x + 1] = x % 2 ? static_cast<std::uint8_t>(255 - luma.at<std::uint8_t>(y, x - 1)) : 0xC0;
       } else {
         row[x] = luma.at<std::uint8_t>(y, x);
       }
     }
   }
+  if (state_.fourcc == V4L2_PIX_FMT_NV12)  // U V pairs at half size both ways, after the Y plane
+    for (int y = 0; y < luma.rows / 2; ++y) {
+      std::uint8_t* row = memory.data() + (luma.rows + y) * stride;
+      for (int x = 0; x < luma.cols / 2; ++x) {
+        row[2 * x] = 0xC0;
+        row[2 * x + 1] = static_cast<std::uint8_t>(255 - luma.at<std::uint8_t>(2 * y, 2 * x));
+      }
+    }
+}
+
+cv::Mat expected_cr(const cv::Mat& luma, std::uint32_t fourcc) {
+  if (fourcc != V4L2_PIX_FMT_YUYV && fourcc != V4L2_PIX_FMT_NV12) return {};
+  const int step_y = fourcc == V4L2_PIX_FMT_NV12 ? 2 : 1;
+  cv::Mat cr(luma.rows / step_y, luma.cols / 2, CV_8UC1);
+  for (int y = 0; y < cr.rows; ++y)
+    for (int x = 0; x < cr.cols; ++x) cr.at<std::uint8_t>(y, x) = 255 - luma.at<std::uint8_t>(step_y * y, 2 * x);
+  return cr;
 }
 
 bool FakeV4l2Device::produce(const cv::Mat& luma) {

@@ -26,6 +26,10 @@ namespace lipdrive::testing {
 /// A gradient the luma checks can recognise: every pixel differs from its neighbours, and
 /// `seed` makes consecutive frames differ.
 cv::Mat test_pattern(cv::Size size, int seed);
+/// The Cr plane the device sends with `luma` in `fourcc` (YUYV: per horizontal pair, NV12: per
+/// 2x2 block, 255 - the luma of its first pixel); empty for formats without one (GREY, and
+/// MJPEG, which the device encodes from the luma alone).
+cv::Mat expected_cr(const cv::Mat& luma, std::uint32_t fourcc);
 
 class FakeV4l2Device final : public SystemCalls {
  public:
@@ -59,7 +63,8 @@ class FakeV4l2Device final : public SystemCalls {
 
   // What the sensor does. Each capture takes a sequence number, even when it is lost.
   /// Captures `luma` (the current size) into the oldest queued buffer, encoded in the
-  /// current format; false when no buffer was queued and the frame was lost.
+  /// current format with expected_cr() as its Cr; false when no buffer was queued and the
+  /// frame was lost.
   bool produce(const cv::Mat& luma);
   /// A capture the hardware flagged as broken (V4L2_BUF_FLAG_ERROR).
   bool produce_error_frame();

@@ -100,7 +100,7 @@ Truth face_truth(const std::vector<cv::Mat>& frames, const std::vector<int>& pro
     if (shot != shot_of(f)) processor.emplace(model, LandmarkSet::F4, FitSettings{}, test::shared_predictor());
     shot = shot_of(f);
     if (shot == Shot::kCovered) continue;
-    const FrameMeasurement& m = processor->process(frames[f]);
+    const FrameMeasurement& m = processor->process(frames[f], cv::Mat());
     if (m.tracked) truth.width[r] = m.measures.width_2d, truth.height[r] = m.measures.height_2d;
   }
   return truth;

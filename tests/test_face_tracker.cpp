@@ -536,7 +536,7 @@ TEST(FaceTracker, SteadyStateTrackingAllocatesNothing) {
     const long before = test::allocation_count();
     const TrackStatus status = tracker.track(frames[f], landmarks);
     const bool accepted =
-        tracker.check_fit(landmarks, 0.0) && tracker.check_mouth(measure_lip_gap(frames[f], landmarks).lip_luma);
+        tracker.check_fit(landmarks, 0.0) && tracker.check_mouth(measure_lip_gap(frames[f], cv::Mat(), landmarks).lip_luma);
     const long allocations = test::allocation_count() - before;
     ASSERT_EQ(status, TrackStatus::kTracking) << "frame " << f;
     ASSERT_TRUE(accepted);
@@ -602,7 +602,7 @@ std::vector<Landmarks2D> clean_landmarks(const std::vector<cv::Mat>& frames) {
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
   std::vector<Landmarks2D> landmarks;
   for (std::size_t f = 0; f < frames.size(); ++f) {
-    const FrameMeasurement& m = processor.process(frames[f]);
+    const FrameMeasurement& m = processor.process(frames[f], cv::Mat());
     EXPECT_TRUE(m.tracked) << "clean frame " << f;
     landmarks.push_back(m.tracked ? m.landmarks : Landmarks2D::Constant(std::nan("")));
   }
@@ -613,7 +613,7 @@ FaultReport run_fault_clip(const FaultClip& clip) {
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
   FaultReport report;
   for (std::size_t f = 0; f < clip.frames.size(); ++f) {
-    const FrameMeasurement& m = processor.process(clip.frames[f]);
+    const FrameMeasurement& m = processor.process(clip.frames[f], cv::Mat());
     if (!m.tracked) {
       report.lost_while_visible += clip.visible[f];
       continue;

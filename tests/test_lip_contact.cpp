@@ -1,6 +1,7 @@
 // Lip contact (core/lip_contact.hpp) on drawn mouths whose answer is known: sealed lips with
 // the landmarks on them or lagging half open, a dark cavity, teeth hardly brighter than the
-// lips; at several resolutions and exposures; and the viseme transfer it feeds.
+// lips; in colour, grey teeth no brighter than the lips and sealed lips whose shading looks like
+// teeth in luma; at several resolutions and exposures; and the viseme transfer it feeds.
 #include "allocation_counter.hpp"
 #include "core/lip_contact.hpp"
 #include "core/viseme_weights.hpp"
@@ -14,10 +15,14 @@
 namespace lipdrive {
 namespace {
 
-enum class Inside { kSealed, kCavity, kTeeth };
+/// kGreyTeeth: teeth as bright as the lips and no line between them (luma shows nothing);
+/// kShadedSeal: sealed lips with a bright band on the upper lip just above the line, which in
+/// luma is the pattern of teeth (a blurred frame's lip shading).
+enum class Inside { kSealed, kCavity, kTeeth, kGreyTeeth, kShadedSeal };
 
 struct DrawnMouth {
   cv::Mat gray;
+  cv::Mat cr;  // Cr at half size both ways (4:2:0): skin 128 + 12, lips 128 + 30, teeth 128 + 2
   Landmarks2D landmarks;
   double d = 0;
 };
@@ -49,26 +54,36 @@ DrawnMouth draw_mouth(Inside inside, double opening, double landmark_opening, do
   for (double x : {80.0, 90.0, 100.0, 110.0, 120.0}) gap.push_back(pt(x, 180 - (x == 80 || x == 120 ? 0 : half_true)));
   for (double x : {110.0, 100.0, 90.0}) gap.push_back(pt(x, 180 + half_true));
 
+  const int line = std::max(1, cvRound(scale));
   cv::Mat image(cvRound(260 * scale), cvRound(200 * scale), CV_8UC1, cv::Scalar(150));
+  cv::Mat cr(image.size(), CV_8UC1, cv::Scalar(140));
   cv::fillPoly(image, std::vector<std::vector<cv::Point>>{outer}, cv::Scalar(110), cv::LINE_AA, 4);
-  if (inside == Inside::kSealed) {
-    cv::line(image, pt(80, 180), pt(120, 180), cv::Scalar(80), std::max(1, cvRound(scale)), cv::LINE_AA, 4);
+  cv::fillPoly(cr, std::vector<std::vector<cv::Point>>{outer}, cv::Scalar(158), cv::LINE_AA, 4);
+  if (inside == Inside::kSealed || inside == Inside::kShadedSeal) {
+    if (inside == Inside::kShadedSeal)
+      cv::line(image, pt(84, 177), pt(116, 177), cv::Scalar(150), 2 * line, cv::LINE_AA, 4);
+    cv::line(image, pt(80, 180), pt(120, 180), cv::Scalar(80), line, cv::LINE_AA, 4);
+    cv::line(cr, pt(80, 180), pt(120, 180), cv::Scalar(152), line, cv::LINE_AA, 4);  // the shadow's colour
   } else {
-    cv::fillPoly(image, std::vector<std::vector<cv::Point>>{gap}, cv::Scalar(inside == Inside::kCavity ? 40 : 128),
+    const double luma = inside == Inside::kCavity ? 40 : inside == Inside::kTeeth ? 128 : 110;
+    cv::fillPoly(image, std::vector<std::vector<cv::Point>>{gap}, cv::Scalar(luma), cv::LINE_AA, 4);
+    cv::fillPoly(cr, std::vector<std::vector<cv::Point>>{gap}, cv::Scalar(inside == Inside::kCavity ? 136 : 130),
                  cv::LINE_AA, 4);
     if (inside == Inside::kTeeth)  // the dark line between upper and lower teeth
-      cv::line(image, pt(84, 180), pt(116, 180), cv::Scalar(60), std::max(1, cvRound(scale)), cv::LINE_AA, 4);
+      cv::line(image, pt(84, 180), pt(116, 180), cv::Scalar(60), line, cv::LINE_AA, 4);
   }
   cv::GaussianBlur(image, image, cv::Size(0, 0), 0.7 * scale);
   image.convertTo(image, CV_8UC1, gain);
-  return {image, p * scale, d * scale};
+  cv::GaussianBlur(cr, cr, cv::Size(0, 0), 0.7 * scale);
+  cv::resize(cr, cr, cv::Size((image.cols + 1) / 2, (image.rows + 1) / 2), 0, 0, cv::INTER_AREA);
+  return {image, cr, p * scale, d * scale};
 }
 
 TEST(LipContact, SealedLipsReadSealedEvenWhenTheLandmarksLagHalfOpen) {
   for (const double lag : {0.0, 0.1, 0.2}) {
     SCOPED_TRACE(::testing::Message() << "landmark opening " << lag << " d");
     const DrawnMouth m = draw_mouth(Inside::kSealed, 0, lag);
-    const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+    const LipGap gap = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
     ASSERT_TRUE(gap.valid);
     EXPECT_LT(gap.darkness, 0.02);
     EXPECT_LT(gap.texture, 0.02);
@@ -83,7 +98,7 @@ TEST(LipContact, ADarkCavityIsOpenAndMeasuredInUnitsOfD) {
   for (const double opening : {0.15, 0.25, 0.4}) {
     SCOPED_TRACE(::testing::Message() << "opening " << opening << " d");
     const DrawnMouth m = draw_mouth(Inside::kCavity, opening, opening);
-    const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+    const LipGap gap = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
     ASSERT_TRUE(gap.valid);
     // Each further 1 d of cavity adds its contrast against the lips (luma 40 against 110) to
     // the darkness: the blur moves darkness along the profile, it does not add or remove any.
@@ -99,34 +114,86 @@ TEST(LipContact, ADarkCavityIsOpenAndMeasuredInUnitsOfD) {
 
 TEST(LipContact, TeethHardlyBrighterThanTheLipsStillPartThem) {
   const DrawnMouth m = draw_mouth(Inside::kTeeth, 0.2, 0.2);
-  const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+  const LipGap gap = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
   ASSERT_TRUE(gap.valid);
   EXPECT_GT(gap.texture, 0.1);
   EXPECT_LT(seal_probability(gap, 0.2), 0.05);
+}
+
+TEST(LipContact, InColourGreyTeethAsBrightAsTheLipsPartThem) {
+  const DrawnMouth m = draw_mouth(Inside::kGreyTeeth, 0.15, 0.15);
+  const LipGap luma = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
+  ASSERT_TRUE(luma.valid);
+  EXPECT_FALSE(luma.colour);
+  EXPECT_GT(seal_probability(luma, 0.15), 0.9) << "in luma alone the teeth are lips";
+  const LipGap colour = measure_lip_gap(m.gray, m.cr, m.landmarks);
+  ASSERT_TRUE(colour.valid);
+  EXPECT_TRUE(colour.colour);
+  EXPECT_NEAR(colour.lip_red, 30, 2);
+  EXPECT_GT(colour.pallor, 0.05);
+  EXPECT_LT(seal_probability(colour, 0.15), 0.05);
+}
+
+TEST(LipContact, InColourSealedLipsWhoseShadingLooksLikeTeethStaySealed) {
+  // The landmarks' inner contours lag apart, so the region where the lips meet takes in the band.
+  for (const double lag : {0.15, 0.2}) {
+    SCOPED_TRACE(::testing::Message() << "landmark opening " << lag << " d");
+    const DrawnMouth m = draw_mouth(Inside::kShadedSeal, 0, lag);
+    const LipGap luma = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
+    ASSERT_TRUE(luma.valid);
+    EXPECT_LT(seal_probability(luma, lag), 0.5) << "in luma alone the shading reads as teeth";
+    const LipGap colour = measure_lip_gap(m.gray, m.cr, m.landmarks);
+    ASSERT_TRUE(colour.colour);
+    EXPECT_LT(colour.pallor, 0.01);
+    EXPECT_GT(seal_probability(colour, lag), 0.9);
+  }
+}
+
+TEST(LipContact, LipsWithoutColourFallBackToTheLuma) {
+  const DrawnMouth m = draw_mouth(Inside::kTeeth, 0.2, 0.2);
+  const cv::Mat grey(m.cr.size(), CV_8UC1, cv::Scalar(129));  // a camera whose colour is all but gone
+  const LipGap gap = measure_lip_gap(m.gray, grey, m.landmarks);
+  ASSERT_TRUE(gap.valid);
+  EXPECT_FALSE(gap.colour);
+  EXPECT_EQ(gap.pallor, 0);
+  EXPECT_EQ(seal_probability(gap, 0.2), seal_probability(measure_lip_gap(m.gray, cv::Mat(), m.landmarks), 0.2));
 }
 
 TEST(LipContact, TheSameMouthReadsTheSameAtAnyResolutionAndExposure) {
   for (const Inside inside : {Inside::kSealed, Inside::kCavity, Inside::kTeeth}) {
     const double opening = inside == Inside::kSealed ? 0.0 : 0.25;
     const DrawnMouth reference = draw_mouth(inside, opening, opening + 0.1);
-    const LipGap expected = measure_lip_gap(reference.gray, reference.landmarks);
+    const LipGap expected = measure_lip_gap(reference.gray, cv::Mat(), reference.landmarks);
     const double expected_seal = seal_probability(expected, opening + 0.1);
     for (const double scale : {2.0, 4.0})
       for (const double gain : {0.6, 1.0, 1.4}) {
         SCOPED_TRACE(::testing::Message()
                      << "inside " << static_cast<int>(inside) << ", scale " << scale << ", gain " << gain);
         const DrawnMouth m = draw_mouth(inside, opening, opening + 0.1, scale, gain);
-        const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+        const LipGap gap = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
         ASSERT_TRUE(gap.valid);
         EXPECT_NEAR(gap.darkness, expected.darkness, 0.04);
         EXPECT_NEAR(seal_probability(gap, opening + 0.1), expected_seal, 0.1);
       }
   }
+  for (const Inside inside : {Inside::kSealed, Inside::kGreyTeeth, Inside::kShadedSeal}) {
+    const double opening = inside == Inside::kGreyTeeth ? 0.15 : 0.0;
+    const DrawnMouth reference = draw_mouth(inside, opening, opening + 0.1);
+    const LipGap expected = measure_lip_gap(reference.gray, reference.cr, reference.landmarks);
+    for (const double scale : {2.0, 4.0}) {
+      SCOPED_TRACE(::testing::Message() << "in colour, inside " << static_cast<int>(inside) << ", scale " << scale);
+      const DrawnMouth m = draw_mouth(inside, opening, opening + 0.1, scale);
+      const LipGap gap = measure_lip_gap(m.gray, m.cr, m.landmarks);
+      ASSERT_TRUE(gap.colour);
+      EXPECT_NEAR(gap.pallor, expected.pallor, 0.02);
+      EXPECT_NEAR(seal_probability(gap, opening + 0.1), seal_probability(expected, opening + 0.1), 0.1);
+    }
+  }
 }
 
 TEST(LipContact, LandmarksWiderThanALaggingClosureAreNeverSealed) {
   const DrawnMouth m = draw_mouth(Inside::kSealed, 0, 0.2);
-  const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+  const LipGap gap = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
   EXPECT_GT(seal_probability(gap, 0.2), 0.9);
   EXPECT_LT(seal_probability(gap, 0.45), 0.01);  // the landmarks see a wide open mouth
 }
@@ -134,21 +201,22 @@ TEST(LipContact, LandmarksWiderThanALaggingClosureAreNeverSealed) {
 TEST(LipContact, NoPixelEvidenceLeavesTheLandmarkHeight) {
   DrawnMouth m = draw_mouth(Inside::kSealed, 0, 0.15);
   m.landmarks.row(1).array() += m.gray.rows;  // the mouth below the image
-  const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+  const LipGap gap = measure_lip_gap(m.gray, cv::Mat(), m.landmarks);
   EXPECT_FALSE(gap.valid);
   EXPECT_EQ(seal_probability(gap, 0.15), 0);
   EXPECT_DOUBLE_EQ(fused_opening(0.15, 0), 0.15);
   const cv::Mat black = cv::Mat::zeros(m.gray.size(), CV_8UC1);
-  EXPECT_FALSE(measure_lip_gap(black, draw_mouth(Inside::kSealed, 0, 0.15).landmarks).valid);
+  EXPECT_FALSE(measure_lip_gap(black, cv::Mat(), draw_mouth(Inside::kSealed, 0, 0.15).landmarks).valid);
 }
 
 TEST(LipContact, MeasuringAllocatesNothing) {
   const DrawnMouth m = draw_mouth(Inside::kTeeth, 0.2, 0.25, 2.0);
+  const cv::Mat no_colour;
   test::count_allocations_on_this_thread(true);
   const long before = test::allocation_count();
   double sum = 0;
   for (int i = 0; i < 10; ++i) {
-    const LipGap gap = measure_lip_gap(m.gray, m.landmarks);
+    const LipGap gap = measure_lip_gap(m.gray, i % 2 == 0 ? m.cr : no_colour, m.landmarks);
     sum += fused_opening(0.25, seal_probability(gap, 0.25));
   }
   const long allocations = test::allocation_count() - before;

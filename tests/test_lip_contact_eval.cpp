@@ -11,6 +11,7 @@
 // (first half in file-name order only); both halves are reported apart.
 #include "core/metrics.hpp"
 #include "core/statistics.hpp"
+#include "drivers/video_file.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/tables/grid_align.hpp"
@@ -65,18 +66,19 @@ struct ClipSeries {
   std::vector<AlignedWord> align;  // owns the words' text
 };
 
-ClipSeries process_clip(const fs::path& video) {
+/// A clip through the per-frame step as the simulated camera decodes it; `colour` false: its
+/// luma alone, as a monochrome camera gives it.
+ClipSeries process_clip(const fs::path& video, bool colour) {
   ClipSeries clip;
   clip.name = video.stem().string();
   clip.align = read_grid_align(fs::path(video).replace_extension(".align"));
   clip.words = word_frames(clip.align);
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
-  cv::VideoCapture capture(video.string());
-  cv::Mat bgr, gray;
+  VideoFile file(video);
+  cv::Mat gray, cr;
   bool acquired = false;
-  while (capture.read(bgr)) {
-    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-    const FrameMeasurement& m = processor.process(gray);
+  while (file.read(gray, cr)) {
+    const FrameMeasurement& m = processor.process(gray, colour ? cr : cv::Mat());
     ++clip.frames;
     clip.tracked += m.tracked;
     clip.lost_after_acquired += acquired && !m.tracked;
@@ -161,42 +163,50 @@ TEST(LipClosureEvaluation, GridClosuresOnTuningAndCheckClips) {
   const std::vector<fs::path> fixtures = files_with_extension(shared / "grid", ".mpg");
   if (development.size() < 2 && fixtures.empty()) GTEST_SKIP() << "no GRID clips in " << shared;
   const std::size_t tuning_count = development.size() / 2;  // the first half in file-name order
-  std::vector<ClipSeries> tuning, check;
-  for (std::size_t i = 0; i < development.size(); ++i)
-    (i < tuning_count ? tuning : check).push_back(process_clip(development[i]));
-  for (const fs::path& clip : fixtures) check.push_back(process_clip(clip));
+  // In colour (GRID's clips are), and in their luma alone: a monochrome camera (an infrared rig)
+  // must meet the same bounds.
+  for (const bool colour : {true, false}) {
+    const std::string planes = colour ? "colour" : "luma alone";
+    std::vector<ClipSeries> tuning, check;
+    for (std::size_t i = 0; i < development.size(); ++i)
+      (i < tuning_count ? tuning : check).push_back(process_clip(development[i], colour));
+    for (const fs::path& clip : fixtures) check.push_back(process_clip(clip, colour));
 
-  for (const auto& [half, clips] : {std::pair{"tuning", &tuning}, std::pair{"check", &check}}) {
-    int frames = 0, tracked = 0, lost = 0;
-    for (const ClipSeries& clip : *clips) {
-      frames += clip.frames, tracked += clip.tracked, lost += clip.lost_after_acquired;
-      EXPECT_EQ(clip.lost_after_acquired, 0) << clip.name << ": the track was dropped on a GRID face";
+    for (const auto& [half_name, clips] : {std::pair{"tuning", &tuning}, std::pair{"check", &check}}) {
+      const std::string half = colour ? std::string(half_name) : std::string(half_name) + "_luma";
+      SCOPED_TRACE(planes);
+      int frames = 0, tracked = 0, lost = 0;
+      for (const ClipSeries& clip : *clips) {
+        frames += clip.frames, tracked += clip.tracked, lost += clip.lost_after_acquired;
+        EXPECT_EQ(clip.lost_after_acquired, 0) << clip.name << ": the track was dropped on a GRID face";
+      }
+      const HalfFigures open = score(*clips, &ClipSeries::open);
+      const HalfFigures landmarks = score(*clips, &ClipSeries::height_2d);
+      const HalfFigures fit = score(*clips, &ClipSeries::height_fit);
+      const auto [bmp_words, bmp_rest] = bilabial_viseme_figure(*clips);
+      fmt::print("GRID {} half ({}), {} clips, {} frames, {} tracked, {} lost after acquisition\n", half_name, planes,
+                 clips->size(), frames, tracked, lost);
+      fmt::print("  open        {}\n  height_2d   {}\n  height_fit  {}\n", summary(open), summary(landmarks),
+                 summary(fit));
+      fmt::print("  viseme B-M-P >= 0.5 on {} bilabial words; mean {:.3f} in the final silences\n", bmp_words,
+                 bmp_rest);
+      for (const std::string& miss : open.misses) fmt::print("  open miss: {}\n", miss);
+      ::testing::Test::RecordProperty(fmt::format("grid_{}_open", half), summary(open));
+      ::testing::Test::RecordProperty(fmt::format("grid_{}_height_2d", half), summary(landmarks));
+      ::testing::Test::RecordProperty(fmt::format("grid_{}_height_fit", half), summary(fit));
+      ::testing::Test::RecordProperty(fmt::format("grid_{}_bmp_viseme", half),
+                                      fmt::format("{} words, rest {:.3f}", bmp_words, bmp_rest));
+
+      // What drives the figure shows at least the closures the raw landmarks show, and 95 % of all.
+      EXPECT_GE(open.closures, landmarks.closures) << half;
+      EXPECT_GE(open.closures, 0.95 * open.words) << half;
+      // Every clip opens, rests and keeps still in its final silence: on the clips the thresholds
+      // were set on, all of them; on the check clips, no fewer than with the landmark height.
+      if (std::string(half_name) == "tuning")
+        EXPECT_EQ(open.clips_failing, 0);
+      else
+        EXPECT_LE(open.clips_failing, landmarks.clips_failing);
     }
-    const HalfFigures open = score(*clips, &ClipSeries::open);
-    const HalfFigures landmarks = score(*clips, &ClipSeries::height_2d);
-    const HalfFigures fit = score(*clips, &ClipSeries::height_fit);
-    const auto [bmp_words, bmp_rest] = bilabial_viseme_figure(*clips);
-    fmt::print("GRID {} half, {} clips, {} frames, {} tracked, {} lost after acquisition\n", half, clips->size(),
-               frames, tracked, lost);
-    fmt::print("  open        {}\n  height_2d   {}\n  height_fit  {}\n", summary(open), summary(landmarks),
-               summary(fit));
-    fmt::print("  viseme B-M-P >= 0.5 on {} bilabial words; mean {:.3f} in the final silences\n", bmp_words, bmp_rest);
-    for (const std::string& miss : open.misses) fmt::print("  open miss: {}\n", miss);
-    ::testing::Test::RecordProperty(fmt::format("grid_{}_open", half), summary(open));
-    ::testing::Test::RecordProperty(fmt::format("grid_{}_height_2d", half), summary(landmarks));
-    ::testing::Test::RecordProperty(fmt::format("grid_{}_height_fit", half), summary(fit));
-    ::testing::Test::RecordProperty(fmt::format("grid_{}_bmp_viseme", half),
-                                    fmt::format("{} words, rest {:.3f}", bmp_words, bmp_rest));
-
-    // What drives the figure shows at least the closures the raw landmarks show, and 95 % of all.
-    EXPECT_GE(open.closures, landmarks.closures) << half;
-    EXPECT_GE(open.closures, 0.95 * open.words) << half;
-    // Every clip opens, rests and keeps still in its final silence: on the clips the thresholds
-    // were set on, all of them; on the check clips, no fewer than with the landmark height.
-    if (std::string(half) == "tuning")
-      EXPECT_EQ(open.clips_failing, 0);
-    else
-      EXPECT_LE(open.clips_failing, landmarks.clips_failing);
   }
 }
 
@@ -232,7 +242,8 @@ PhotoResult process_photo(FrameProcessor& processor, const fs::path& image, bool
   r.name = image.stem().string();
   const Landmarks2D truth = read_pts(fs::path(image).replace_extension(".pts"));
   r.truth_height = mouth_ratios<2>(truth).height;
-  cv::Mat gray = cv::imread(image.string(), cv::IMREAD_GRAYSCALE);
+  cv::Mat gray, cr;
+  read_image(image, gray, cr);
   Eigen::Vector2d offset = Eigen::Vector2d::Zero();
   if (crop) {
     const Eigen::Vector2d low = truth.rowwise().minCoeff(), high = truth.rowwise().maxCoeff();
@@ -242,6 +253,7 @@ PhotoResult process_photo(FrameProcessor& processor, const fs::path& image, bool
     const int x1 = std::min(gray.cols, static_cast<int>(high.x() + size.x())),
               y1 = std::min(gray.rows, static_cast<int>(high.y() + size.y()));
     gray = gray(cv::Rect(x0, y0, x1 - x0, y1 - y0)).clone();
+    if (!cr.empty()) cr = cr(cv::Rect(x0, y0, x1 - x0, y1 - y0)).clone();
     offset << x0, y0;
   }
   if (detected) {
@@ -256,7 +268,7 @@ PhotoResult process_photo(FrameProcessor& processor, const fs::path& image, bool
                 local.row(1).maxCoeff() <= gray.rows - 1 - margin;
   }
   processor.forget();
-  const FrameMeasurement& m = processor.process(gray);
+  const FrameMeasurement& m = processor.process(gray, cr);
   r.tracked = m.tracked;
   if (!m.tracked) return r;
   const Landmarks2D landmarks = m.landmarks.colwise() + offset;

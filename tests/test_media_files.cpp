@@ -66,17 +66,17 @@ TEST_F(MediaFilesTest, AClipsLumaIsWhatOpenCvsDecoderGives) {
   ASSERT_TRUE(reference.isOpened());
   EXPECT_DOUBLE_EQ(video.frame_rate(), reference.get(cv::CAP_PROP_FPS));
   EXPECT_EQ(video.frame_count(), static_cast<std::int64_t>(reference.get(cv::CAP_PROP_FRAME_COUNT)));
-  cv::Mat gray, bgr;
+  cv::Mat gray, cr, bgr;
   int frames = 0;
   double worst = 0;
   while (reference.read(bgr)) {
-    ASSERT_TRUE(video.read(gray)) << "frame " << frames;
+    ASSERT_TRUE(video.read(gray, cr)) << "frame " << frames;
     ASSERT_EQ(gray.size(), bgr.size());
     ASSERT_EQ(gray.type(), CV_8UC1);
     worst = std::max(worst, mean_abs_difference(gray, gray_of(bgr)));
     ++frames;
   }
-  EXPECT_FALSE(video.read(gray)) << "both end together";
+  EXPECT_FALSE(video.read(gray, cr)) << "both end together";
   EXPECT_EQ(frames, video.frame_count());
   // Full-range luma either way; OpenCV goes through BGR and rounds twice.
   EXPECT_LT(worst, 1.0) << "mean absolute luma difference, worst frame";
@@ -88,9 +88,32 @@ TEST_F(MediaFilesTest, ImagesReadAsOpenCvReadsThem) {
   ASSERT_TRUE(cv::imwrite(png.string(), card));
   ASSERT_TRUE(cv::imwrite(jpeg.string(), card, {cv::IMWRITE_JPEG_QUALITY, 90}));
   ASSERT_TRUE(cv::imwrite(pgm.string(), gray_of(card)));
-  EXPECT_LT(mean_abs_difference(read_gray_image(png), cv::imread(png.string(), cv::IMREAD_GRAYSCALE)), 0.6);
-  EXPECT_LT(mean_abs_difference(read_gray_image(jpeg), cv::imread(jpeg.string(), cv::IMREAD_GRAYSCALE)), 1.0);
-  EXPECT_EQ(mean_abs_difference(read_gray_image(pgm), gray_of(card)), 0.0);
+  const auto planes = [](const fs::path& file) {
+    std::pair<cv::Mat, cv::Mat> gray_cr;
+    read_image(file, gray_cr.first, gray_cr.second);
+    return gray_cr;
+  };
+  // Cr as OpenCV's BT.601 conversion of the decoded colour image gives it (its 4:2:0 plane
+  // brought up to the image's size where JPEG coded it at half size).
+  const auto cr_of = [](const fs::path& file, cv::Size size) {
+    cv::Mat ycrcb, channels[3];
+    cv::cvtColor(cv::imread(file.string(), cv::IMREAD_COLOR), ycrcb, cv::COLOR_BGR2YCrCb);
+    cv::split(ycrcb, channels);
+    cv::Mat cr;
+    cv::resize(channels[1], cr, size, 0, 0, cv::INTER_AREA);
+    return cr;
+  };
+  const auto [png_gray, png_cr] = planes(png);
+  EXPECT_LT(mean_abs_difference(png_gray, cv::imread(png.string(), cv::IMREAD_GRAYSCALE)), 0.6);
+  ASSERT_EQ(png_cr.size(), card.size());
+  EXPECT_LT(mean_abs_difference(png_cr, cr_of(png, png_cr.size())), 1.0);
+  const auto [jpeg_gray, jpeg_cr] = planes(jpeg);
+  EXPECT_LT(mean_abs_difference(jpeg_gray, cv::imread(jpeg.string(), cv::IMREAD_GRAYSCALE)), 1.0);
+  ASSERT_FALSE(jpeg_cr.empty());
+  EXPECT_LT(mean_abs_difference(jpeg_cr, cr_of(jpeg, jpeg_cr.size())), 2.0);
+  const auto [pgm_gray, pgm_cr] = planes(pgm);
+  EXPECT_EQ(mean_abs_difference(pgm_gray, gray_of(card)), 0.0);
+  EXPECT_TRUE(pgm_cr.empty()) << "a gray image has no colour";
 }
 
 TEST_F(MediaFilesTest, UnreadableImagesAreErrorsNamingTheFile) {
@@ -98,7 +121,8 @@ TEST_F(MediaFilesTest, UnreadableImagesAreErrorsNamingTheFile) {
   std::ofstream(fake) << "not an image\n";
   for (const fs::path& file : {fake, dir_ / "missing.png"}) {
     try {
-      read_gray_image(file);
+      cv::Mat gray, cr;
+      read_image(file, gray, cr);
       ADD_FAILURE() << file << " was read";
     } catch (const MediaError& e) {
       EXPECT_THAT(e.what(), HasSubstr(file.string()));
@@ -106,19 +130,25 @@ TEST_F(MediaFilesTest, UnreadableImagesAreErrorsNamingTheFile) {
   }
 }
 
-TEST_F(MediaFilesTest, JpegDecoderGivesTheLumaAndNeverAStaleFrame) {
+TEST_F(MediaFilesTest, JpegDecoderGivesTheLumaAndCrAndNeverAStaleFrame) {
   const cv::Mat card = test_card();
   std::vector<uchar> bytes;
   ASSERT_TRUE(cv::imencode(".jpg", card, bytes, {cv::IMWRITE_JPEG_QUALITY, 90}));
   JpegDecoder decoder;
-  cv::Mat gray;
-  ASSERT_TRUE(decoder.decode(bytes, gray));
+  cv::Mat gray, cr;
+  ASSERT_TRUE(decoder.decode(bytes, gray, cr));
   EXPECT_LT(mean_abs_difference(gray, cv::imdecode(bytes, cv::IMREAD_GRAYSCALE)), 1.0);
+  cv::Mat ycrcb, channels[3], reference_cr;
+  cv::cvtColor(cv::imdecode(bytes, cv::IMREAD_COLOR), ycrcb, cv::COLOR_BGR2YCrCb);
+  cv::split(ycrcb, channels);
+  cv::resize(channels[1], reference_cr, cr.size(), 0, 0, cv::INTER_AREA);
+  EXPECT_LT(mean_abs_difference(cr, reference_cr), 2.0);
 
   const std::vector<std::uint8_t> garbage(4000, 0x5a);
-  EXPECT_FALSE(decoder.decode(garbage, gray));
+  EXPECT_FALSE(decoder.decode(garbage, gray, cr));
   EXPECT_TRUE(gray.empty()) << "a frame that is not a JPEG leaves no picture behind";
-  ASSERT_TRUE(decoder.decode(bytes, gray)) << "the decoder recovers on the next good frame";
+  EXPECT_TRUE(cr.empty());
+  ASSERT_TRUE(decoder.decode(bytes, gray, cr)) << "the decoder recovers on the next good frame";
   EXPECT_EQ(gray.size(), card.size());
 }
 

@@ -20,6 +20,7 @@ namespace {
 using namespace std::chrono_literals;
 using testing::FakeV4l2Device;
 using testing::test_pattern;
+using testing::expected_cr;
 using Clock = std::chrono::steady_clock;
 
 // How late a grab may return after its timeout: on a shared 2-core machine at load 11,
@@ -172,7 +173,7 @@ TEST(V4l2Negotiation, ParsesPixelFormatNames) {
   EXPECT_THROW(parse_pixel_format("RGB3"), std::invalid_argument);
 }
 
-// ---- luma extraction ---------------------------------------------------------------------
+// ---- luma and Cr extraction ---------------------------------------------------------------
 
 struct LumaCase {
   std::uint32_t fourcc;
@@ -187,7 +188,7 @@ void PrintTo(const LumaCase& luma_case, std::ostream* out) {
 
 class V4l2Luma : public ::testing::TestWithParam<LumaCase> {};
 
-TEST_P(V4l2Luma, DeliversTheLumaPlaneOfEachFrame) {
+TEST_P(V4l2Luma, DeliversTheLumaAndCrPlanesOfEachFrame) {
   FakeV4l2Device::Config config;
   config.formats = {GetParam().fourcc};
   config.row_padding = GetParam().row_padding;
@@ -202,6 +203,12 @@ TEST_P(V4l2Luma, DeliversTheLumaPlaneOfEachFrame) {
       ASSERT_EQ(frame.gray.type(), CV_8UC1);
       ASSERT_EQ(frame.gray.size(), expected.size());
       EXPECT_LE(cv::norm(frame.gray, expected, cv::NORM_INF), GetParam().max_error) << "frame " << seed;
+      const cv::Mat cr = expected_cr(expected, GetParam().fourcc);
+      ASSERT_EQ(frame.cr.empty(), cr.empty()) << "a Cr plane exactly where the format carries one";
+      if (!cr.empty()) {
+        ASSERT_EQ(frame.cr.size(), cr.size());
+        EXPECT_EQ(cv::norm(frame.cr, cr, cv::NORM_INF), 0) << "frame " << seed;
+      }
       EXPECT_EQ(frame.sequence, std::uint64_t(seed));
       EXPECT_EQ(frame.source, config.path);
     }

@@ -61,15 +61,15 @@ struct NeutralCapture {
   std::unique_ptr<CalibrationCapture> measures = std::make_unique<CalibrationCapture>();
   std::vector<FacialMeasures> faces;
   std::vector<Landmarks2D> landmarks;
-  std::vector<cv::Mat> images;
-  std::vector<double> quality;  // the fit's (MouthMeasures::quality)
+  std::vector<std::pair<cv::Mat, cv::Mat>> images;  // luma and Cr
+  std::vector<double> quality;                      // the fit's (MouthMeasures::quality)
 
-  void add(const FrameMeasurement& m, const cv::Mat& gray, bool keep_images) {
+  void add(const FrameMeasurement& m, const cv::Mat& gray, const cv::Mat& cr, bool keep_images) {
     measures->add(m.measures);
     faces.push_back(facial_measures(m.landmarks));
     landmarks.push_back(m.landmarks);
     quality.push_back(m.measures.quality);
-    if (keep_images) images.push_back(gray.clone());
+    if (keep_images) images.emplace_back(gray.clone(), cr.clone());
   }
 };
 
@@ -101,9 +101,9 @@ PerformerIdentity fit_performer_identity(const Config& config, LoadedFiles& file
   processor = make_processor(config, files, with_identity);
   const double mean_face_quality = median(neutral.quality);
   NeutralCapture again;
-  for (const cv::Mat& image : neutral.images) {
-    const FrameMeasurement& m = processor->process(image);
-    if (m.tracked) again.add(m, image, false);
+  for (const auto& [gray, cr] : neutral.images) {
+    const FrameMeasurement& m = processor->process(gray, cr);
+    if (m.tracked) again.add(m, gray, cr, false);
   }
   fmt::print("identity: {} components from {} neutral frames; fit quality at rest {:.3f} (mean face {:.3f})\n",
              identity.components, neutral.landmarks.size(), median(again.quality), mean_face_quality);
@@ -136,10 +136,10 @@ void run_calibrate(const CalibrateOptions& options) {
     const GrabStatus status = source->grab(frame, std::chrono::milliseconds(200));
     if (status == GrabStatus::kEndOfStream) break;
     if (status != GrabStatus::kFrame) continue;
-    const FrameMeasurement& m = processor->process(frame.gray);
+    const FrameMeasurement& m = processor->process(frame.gray, frame.cr);
     if (!m.tracked) continue;
     if (neutral.measures->size() < neutral_frames && !identity) {
-      neutral.add(m, frame.gray, fits_identity);
+      neutral.add(m, frame.gray, frame.cr, fits_identity);
       if (neutral.measures->size() < neutral_frames) continue;
       if (fits_identity) identity = fit_performer_identity(config, files, neutral, processor);
       if (!recording)

@@ -214,7 +214,7 @@ FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
                          kExitDataError);
     if (video.independent_frames()) processor->forget();
     identity = processor->identity();
-    result = &processor->process(frame.gray);
+    result = &processor->process(frame.gray, frame.cr);
   }
   if (!result->tracked)
     throw CommandError(fmt::format("{}: frame {}: no face tracked", name, args.frame), kExitDataError);

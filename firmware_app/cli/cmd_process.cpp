@@ -147,6 +147,7 @@ struct DecodedFrame {
   enum class Kind { kFrame, kCorrupt, kEnd, kError };
   Kind kind = Kind::kEnd;
   cv::Mat gray;  // reused: copyTo keeps the buffer while the frame size stays the same
+  cv::Mat cr;    // the same; empty from a monochrome source
   std::uint64_t sequence = 0;
   double media_time_s = 0;
   std::string source;
@@ -218,6 +219,7 @@ void decode_all(SimulatedCamera& camera, FrameRing& ring) {
         case GrabStatus::kFrame:
           slot->kind = DecodedFrame::Kind::kFrame;
           frame.gray.copyTo(slot->gray);
+          frame.cr.copyTo(slot->cr);
           slot->sequence = frame.sequence;
           slot->media_time_s = frame.media_time_s;
           slot->source.assign(frame.source);
@@ -325,7 +327,7 @@ void run_process(const ProcessOptions& options) {
     }
     times.decode.push_back(frame.decode_ms);
     if (independent) processor->forget();
-    const FrameMeasurement& result = processor->process(frame.gray);
+    const FrameMeasurement& result = processor->process(frame.gray, frame.cr);
     times.landmarks.push_back(result.landmarks_ms);
     if (!std::isnan(result.fit_ms)) times.fit.push_back(result.fit_ms);
     if (result.tracked) times.measures.push_back(result.measures_ms);

@@ -48,6 +48,7 @@ void Capture::run() {
       case GrabStatus::kFrame: {
         CapturedFrame& slot = frames_.back();
         frame.gray.copyTo(slot.gray);
+        frame.cr.copyTo(slot.cr);
         slot.capture_time_ns = frame.capture_time_ns;
         slot.sequence = frame.sequence;
         slot.media_time_s = frame.media_time_s;

@@ -22,9 +22,10 @@
 
 namespace lipdrive {
 
-/// A frame in the hand-off: the capture thread's copy of the source's luma plane.
+/// A frame in the hand-off: the capture thread's copy of the source's luma and Cr planes.
 struct CapturedFrame {
   cv::Mat gray;  // keeps its buffer while the frame size does not change
+  cv::Mat cr;    // the same; empty from a monochrome camera
   std::int64_t capture_time_ns = 0;
   std::uint64_t sequence = 0;
   double media_time_s = 0;

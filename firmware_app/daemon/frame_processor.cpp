@@ -52,7 +52,7 @@ void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
   identity_frames_ = {};
 }
 
-const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
+const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray, const cv::Mat& cr) {
   FrameMeasurement& r = result_;
   r.tracked = false;
   r.fit_ms = r.measures_ms = std::nan("");
@@ -70,7 +70,7 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray) {
   r.fit_ms = ms_since(start);
   if (!tracker_.check_fit(r.landmarks, fit_.reprojection_error_px)) return r;
   start = monotonic_ns();
-  const LipGap lips = measure_lip_gap(gray, r.landmarks);
+  const LipGap lips = measure_lip_gap(gray, cr, r.landmarks);
   if (lips.valid && !tracker_.check_mouth(lips.lip_luma)) return r;
   r.measures = measure_mouth(r.landmarks, fit_, reference_);
   r.measures.seal = seal_probability(lips, r.measures.height_2d);

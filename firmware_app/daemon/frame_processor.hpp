@@ -51,10 +51,11 @@ class FrameProcessor {
                  const Eigen::VectorXf& identity = Eigen::VectorXf(),
                  const FitOutput::Expressions& rest = FitOutput::Expressions::Zero(), AutoIdentity automatic = {});
 
-  /// Measures one luma frame (CV_8UC1). Allocation-free while the face stays tracked
+  /// Measures one frame: its luma (CV_8UC1) and, from a colour camera, its Cr plane (CV_8UC1,
+  /// empty otherwise: the lip contact then reads the luma alone). Allocation-free while the face stays tracked
   /// (acquiring it runs dlib's detector, which allocates; so does the one frame on which an
   /// AutoIdentity is fitted, and the first of its frames, which fits the provisional one).
-  const FrameMeasurement& process(const cv::Mat& gray);
+  const FrameMeasurement& process(const cv::Mat& gray, const cv::Mat& cr);
 
   /// The next frame is unrelated to the last (independent images): detect afresh, and gather
   /// an AutoIdentity's frames afresh (another image may be another face).

@@ -105,7 +105,7 @@ void Pipeline::processing_loop() {
 
 void Pipeline::process(const CapturedFrame& frame) {
   hand_off_time_.add(monotonic_ns() - frame.capture_time_ns);
-  const FrameMeasurement& measurement = processor_->process(frame.gray);
+  const FrameMeasurement& measurement = processor_->process(frame.gray, frame.cr);
   add_stage_time(landmarks_time_, measurement.landmarks_ms);
   add_stage_time(fit_time_, measurement.fit_ms);
   add_stage_time(measures_time_, measurement.measures_ms);

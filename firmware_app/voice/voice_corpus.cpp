@@ -60,7 +60,7 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
   for (GrabStatus status;
        (status = camera->grab(frame, std::chrono::milliseconds(1000))) != GrabStatus::kEndOfStream;) {
     if (status != GrabStatus::kFrame) continue;
-    const FrameMeasurement& m = processor.process(frame.gray);
+    const FrameMeasurement& m = processor.process(frame.gray, frame.cr);
     VoiceTargetFrame target;
     target.time_s = frame.media_time_s - sound.start_s;
     target.tracked = m.tracked;
