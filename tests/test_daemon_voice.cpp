@@ -44,9 +44,9 @@ constexpr double kSentenceEnd = 1.84;               // lgaf4n.align: "now" ends,
 constexpr double kCoverFrom = 3.6, kSoundTo = 4.2;  // the lens covered, then no sound
 constexpr int kHoldMs = 250, kEaseMs = 500, kCrossfadeMs = 150, kAudioTimeoutMs = 200;
 constexpr double kNeutral = 500;  // the open channel's neutral, output units (0..1000)
-// open r over the gap: the target (issue 13), and what this model achieves with room for the
-// run-to-run spread (0.540 and 0.586 measured: docs/voice.md).
-constexpr double kTargetR = 0.6, kAchievedR = 0.45;
+// open r over the gap: the target (0.739 in 3 runs since the video's open takes the lip colour;
+// 0.540 and 0.586 before: docs/voice.md).
+constexpr double kTargetR = 0.6;
 
 fs::path grid_clip() { return test::shared_fixtures() / "grid" / "lgaf4n.mpg"; }
 
@@ -223,9 +223,7 @@ TEST(DaemonVoice, TheVoiceDrivesWhileTheCameraIsAwayThenTheFailSafe) {
 
   EXPECT_EQ(voice_frames, gap_frames);
   EXPECT_GE(drive.size(), 25u);
-  // A miss against the target (docs/voice.md): the test holds what the model achieves.
-  RecordProperty("open_r_target_met", r >= kTargetR ? "yes" : "no");
-  EXPECT_GE(r, kAchievedR) << "the voice follows the video over the gap";
+  EXPECT_GE(r, kTargetR) << "the voice follows the video over the gap";
   EXPECT_GE(silent_frames, 5);
   EXPECT_EQ(resting, silent_frames) << "the mouth rests in the silence";
   EXPECT_NE(rest_level, kNeutral);
