@@ -24,10 +24,11 @@
 //    (1 - Cr' / lip Cr', Cr' = Cr - 128). Teeth and the mouth's inside are not lip-coloured,
 //    however grey or evenly lit, while the lips' own shading (a blurred upper lip reads lip,
 //    bright, dark like teeth in luma) keeps their colour.
-// seal falls from 1 to 0 as the stronger of the two passes its threshold, and only while the
-// landmarks' own inner-lip height is one a lagging closure can show (<= 0.3 d). open is the
-// landmark inner-lip height (the image, not the fit: the fit loses closures the landmarks
-// had) times (1 - seal): sealed lips read 0, an open mouth keeps its landmark height.
+// seal falls from 1 to 0 as the stronger evidence (the darkness, or the texture or pallor)
+// passes its threshold, and only while the landmarks' own inner-lip height is one a lagging
+// closure can show (<= 0.3 d). open is the landmark inner-lip height (the image, not the fit:
+// the fit loses closures the landmarks had) times (1 - seal): sealed lips read 0, an open
+// mouth keeps its landmark height.
 //
 // The thresholds were set on the first 25 clips (file-name order, bbal9a .. pbai5s) of the
 // GRID development set and checked on the other 25 and two further clips

@@ -9,6 +9,10 @@
 // clips in file-name order and nothing else; the other 25 and fixtures/grid are the check
 // half, reported apart. The LFPW photographs were looked at while designing the measure
 // (first half in file-name order only); both halves are reported apart.
+//
+// Clips and photographs are decoded as the simulated camera and `lipdrive process` decode them
+// (FFmpeg's luma and Cr planes, drivers/video_file.hpp); the GRID clips run in colour and in
+// their luma alone, as a monochrome camera would give them.
 #include "core/metrics.hpp"
 #include "core/statistics.hpp"
 #include "drivers/video_file.hpp"
@@ -22,9 +26,7 @@
 #include <dlib/opencv/cv_image.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
+#include <opencv2/core/mat.hpp>
 
 #include <algorithm>
 #include <cmath>
