@@ -67,8 +67,8 @@ struct Profile {
 constexpr int kTaps = 4;
 
 /// `cr`: the Cr plane, or null (no colour: `red` stays 0).
-bool read_profile(const cv::Mat& gray, const cv::Mat* cr, const Landmarks2D& p, const FaceAxes& axes, const Vec2& base,
-                  double reach, double width, Profile& out) {
+bool read_profile(const cv::Mat& gray, const SubsampledPlane* cr, const Landmarks2D& p, const FaceAxes& axes,
+                  const Vec2& base, double reach, double width, Profile& out) {
   const double outer_top = contour_depth(p, kOuterUpper, axes, base);
   const double outer_bottom = contour_depth(p, kOuterLower, axes, base);
   const double inner_top = contour_depth(p, kInnerUpper, axes, base);
@@ -83,7 +83,7 @@ bool read_profile(const cv::Mat& gray, const cv::Mat* cr, const Landmarks2D& p, 
     for (int k = 0; k < kTaps; ++k) {
       const Vec2 tap = at + ((k + 0.5) / kTaps - 0.5) * width * axes.across;
       sum += sample_luma(gray, tap.x(), tap.y());
-      if (cr != nullptr) red += sample_chroma(*cr, gray, tap.x(), tap.y()) - 128.0f;
+      if (cr != nullptr) red += cr->at(tap.x(), tap.y()) - 128.0f;
     }
     out.luma[i] = sum / kTaps;
     out.red[i] = red / kTaps;
@@ -143,6 +143,7 @@ LipGap measure_lip_gap(const cv::Mat& gray, const cv::Mat& cr, const Landmarks2D
   LipGap result;
   if (gray.empty() || gray.type() != CV_8UC1 || !p.allFinite()) return result;
   const bool chroma = !cr.empty() && cr.type() == CV_8UC1 && cr.cols <= gray.cols && cr.rows <= gray.rows;
+  const SubsampledPlane cr_plane(cr, gray);
   const double d = (0.5 * (p.col(ibug::kRightEyeInner) + p.col(ibug::kLeftEyeInner)) - p.col(ibug::kNoseTip)).norm();
   if (!(d > 1)) return result;
   const FaceAxes axes = face_axes(p);
@@ -157,7 +158,8 @@ LipGap measure_lip_gap(const cv::Mat& gray, const cv::Mat& cr, const Landmarks2D
   for (int c = 0; c < kColumns; ++c) {
     const double t = 0.5 + s.column_span * (static_cast<double>(c) / (kColumns - 1) - 0.5);
     Profile& profile = profiles[c];
-    if (!read_profile(gray, chroma ? &cr : nullptr, p, axes, right + t * (left - right), reach, column_width, profile))
+    if (!read_profile(gray, chroma ? &cr_plane : nullptr, p, axes, right + t * (left - right), reach, column_width,
+                      profile))
       return result;
     // The lip bands: from each outer contour to the inner contour on its side.
     for (int i = 0; i < n; ++i) {

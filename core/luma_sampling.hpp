@@ -25,11 +25,20 @@ inline float sample_luma(const cv::Mat& gray, double x, double y) {
   return upper + ay * (lower - upper);
 }
 
-/// The same for a plane sampled more coarsely than the luma (a camera's 4:2:0 or 4:2:2 chroma):
-/// (x, y) in luma pixels, the planes' centres aligned.
-inline float sample_chroma(const cv::Mat& plane, const cv::Mat& luma, double x, double y) {
-  const double sx = static_cast<double>(plane.cols) / luma.cols, sy = static_cast<double>(plane.rows) / luma.rows;
-  return sample_luma(plane, (x + 0.5) * sx - 0.5, (y + 0.5) * sy - 0.5);
-}
+/// A plane sampled more coarsely than the luma (a camera's 4:2:0 or 4:2:2 chroma), read at luma
+/// positions: the planes' pixel centres aligned, the scale taken once.
+class SubsampledPlane {
+ public:
+  SubsampledPlane(const cv::Mat& plane, const cv::Mat& luma)
+      : plane_(plane),
+        sx_(static_cast<double>(plane.cols) / luma.cols),
+        sy_(static_cast<double>(plane.rows) / luma.rows) {}
+  /// sample_luma's bilinear value at luma pixel (x, y).
+  float at(double x, double y) const { return sample_luma(plane_, (x + 0.5) * sx_ - 0.5, (y + 0.5) * sy_ - 0.5); }
+
+ private:
+  const cv::Mat& plane_;
+  double sx_, sy_;
+};
 
 }  // namespace lipdrive

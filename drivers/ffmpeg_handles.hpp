@@ -103,14 +103,13 @@ class PictureConverter {
     if (chroma_scaler_ == nullptr) return false;
     const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);  // full-range Cr, as JPEG codes it
     sws_setColorspaceDetails(chroma_scaler_, coefficients, 1, coefficients, 1, 0, 1 << 16, 1 << 16);
-    planes_.create(3 * picture.height, picture.width, CV_8UC1);  // Y', Cb, Cr one under the other
     const int rows = picture.height;
-    std::uint8_t* planes[] = {planes_.ptr(0), planes_.ptr(rows), planes_.ptr(2 * rows)};
-    const int strides[] = {static_cast<int>(planes_.step[0]), static_cast<int>(planes_.step[0]),
-                           static_cast<int>(planes_.step[0])};
-    if (sws_scale(chroma_scaler_, picture.data, picture.linesize, 0, rows, planes, strides) != rows) return false;
-    planes_.rowRange(2 * rows, 3 * rows).copyTo(cr);
-    return true;
+    luma_and_cb_.create(2 * rows, picture.width, CV_8UC1);  // Y' above Cb; Cr straight into `cr`
+    cr.create(rows, picture.width, CV_8UC1);
+    std::uint8_t* planes[] = {luma_and_cb_.ptr(0), luma_and_cb_.ptr(rows), cr.ptr(0)};
+    const int strides[] = {static_cast<int>(luma_and_cb_.step[0]), static_cast<int>(luma_and_cb_.step[0]),
+                           static_cast<int>(cr.step[0])};
+    return sws_scale(chroma_scaler_, picture.data, picture.linesize, 0, rows, planes, strides) == rows;
   }
 
   /// JPEG's full-range formats as the same layout in video range (libswscale takes the range
@@ -129,7 +128,7 @@ class PictureConverter {
  private:
   SwsContext* scaler_ = nullptr;
   SwsContext* chroma_scaler_ = nullptr;  // pictures whose Cr is not coded as such (RGB)
-  cv::Mat planes_;                       // their Y'CbCr, kept while the size holds
+  cv::Mat luma_and_cb_;                  // their Y' and Cb, not used, kept while the size holds
 };
 
 }  // namespace lipdrive::ffmpeg
