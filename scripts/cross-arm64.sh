@@ -97,10 +97,11 @@ EOF
   for lib in "$sysroot"/usr/lib/aarch64-linux-gnu/{blas,lapack}/lib*.so*; do
     ln -sfn "$(basename "$(dirname "$lib")")/$(basename "$lib")" "$sysroot/usr/lib/aarch64-linux-gnu/$(basename "$lib")"
   done
-  # So would absolute library paths that a package's CMake files recorded when it was built
-  # (dlib's: /usr/lib/aarch64-linux-gnu/libpng.so ...): point them into the root.
-  { grep -rlE '[";]/usr/lib/aarch64-linux-gnu/lib' "$sysroot"/usr/lib/aarch64-linux-gnu/cmake "$sysroot"/usr/lib/cmake \
-    "$sysroot"/usr/share/*/cmake 2>/dev/null || true; } | xargs -r sed -i -E "s#([\";])/usr/lib/aarch64-linux-gnu/lib#\1$sysroot/usr/lib/aarch64-linux-gnu/lib#g"
+  # Absolute library paths that a package's CMake files recorded when Debian built it (dlib's:
+  # /usr/lib/aarch64-linux-gnu/libpng.so ...) would leave the root too: point them into it.
+  libdir=/usr/lib/aarch64-linux-gnu
+  { grep -rlE "[\";]$libdir/lib" "$sysroot$libdir/cmake" "$sysroot/usr/lib/cmake" "$sysroot"/usr/share/*/cmake \
+    2>/dev/null || true; } | xargs -r sed -i -E "s#([\";])$libdir/lib#\1$sysroot$libdir/lib#g"
   rm -rf "$state/cache/archives"
   echo "$want" >"$sysroot/.packages"
 fi
