@@ -17,20 +17,12 @@ build=$(cd "$build" && pwd)
 sysroot=$build/sysroot
 state=$build/apt
 
-# Host tools: the cross compilers and the emulator.
-host_packages=(cmake ccache pkg-config crossbuild-essential-arm64 qemu-user-static)
-# The arm64 root: the C and C++ runtimes and the -dev libraries the product builds against
-# (those of scripts/install-deps.sh).
-arm64_packages=(
-  libc6-dev libstdc++-12-dev
-  libeigen3-dev libopencv-dev libdlib-dev libblas-dev liblapack-dev
-  libmodbus-dev libgpiod-dev libcamera-dev libsystemd-dev
-  libcli11-dev libspdlog-dev libfmt-dev libtomlplusplus-dev nlohmann-json3-dev
-  libtinyobjloader-dev libcpp-httplib-dev zlib1g-dev libssl-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
-  libola-dev liblo-dev libltc-dev
-  libasound2-dev libaubio-dev libavformat-dev libavcodec-dev libswresample-dev libswscale-dev libavutil-dev
-)
+libdir=/usr/lib/aarch64-linux-gnu  # Debian's arm64 library folder, in the root
+# The arm64 root: the -dev libraries the product builds against (scripts/install-deps.sh), and
+# what the host has of them through other packages: the C and C++ runtimes, BLAS and LAPACK
+# (dlib's), OpenSSL (the monitor's tests).
+mapfile -t arm64_packages < <(./scripts/install-deps.sh --libraries)
+arm64_packages+=(libc6-dev libstdc++-12-dev libblas-dev liblapack-dev libssl-dev)
 # The tests run under emulation: those that neither time the daemon (their bounds are for the
 # native build; emulated, everything is 10-25x slower), nor start `lipdrive` as a program of
 # its own (without the kernel's binfmt_misc, an arm64 program cannot start another), nor need
@@ -43,19 +35,9 @@ emulated_tests=(
   test_v4l2_camera test_libcamera_camera test_gpio test_serial test_dmx test_osc test_systemd_unit
 )
 
-SUDO=""
-[ "$(id -u)" -ne 0 ] && SUDO="sudo"
-export DEBIAN_FRONTEND=noninteractive
 t0=$(date +%s)
-missing=()
-for p in "${host_packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "cross-arm64: installing ${missing[*]}" >&2
-  $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+# Host tools: the cross compilers and the emulator.
+./scripts/install-deps.sh cmake ccache pkg-config crossbuild-essential-arm64 qemu-user-static
 
 # The root is made again when the package list changes.
 want="${arm64_packages[*]}"
@@ -94,12 +76,11 @@ EOF
   done)
   # The BLAS and LAPACK libraries (dlib's) are reached through update-alternatives, which
   # only a package's installation runs: link the reference ones where it would.
-  for lib in "$sysroot"/usr/lib/aarch64-linux-gnu/{blas,lapack}/lib*.so*; do
-    ln -sfn "$(basename "$(dirname "$lib")")/$(basename "$lib")" "$sysroot/usr/lib/aarch64-linux-gnu/$(basename "$lib")"
+  for lib in "$sysroot$libdir"/{blas,lapack}/lib*.so*; do
+    ln -sfn "$(basename "$(dirname "$lib")")/$(basename "$lib")" "$sysroot$libdir/$(basename "$lib")"
   done
   # Absolute library paths that a package's CMake files recorded when Debian built it (dlib's:
   # /usr/lib/aarch64-linux-gnu/libpng.so ...) would leave the root too: point them into it.
-  libdir=/usr/lib/aarch64-linux-gnu
   { grep -rlE "[\";]$libdir/lib" "$sysroot$libdir/cmake" "$sysroot/usr/lib/cmake" "$sysroot"/usr/share/*/cmake \
     2>/dev/null || true; } | xargs -r sed -i -E "s#([\";])$libdir/lib#\1$sysroot$libdir/lib#g"
   rm -rf "$state/cache/archives"

@@ -1,20 +1,33 @@
 #!/usr/bin/env bash
-# Installs every Debian 12 package lipdrive needs to build, run and test.
+# Installs every Debian 12 package lipdrive needs to build, run and test; with packages as
+# arguments, those instead (scripts/cross-arm64.sh's host tools). `--libraries` prints the -dev
+# libraries the build compiles and links against, one a line, and installs nothing
+# (scripts/cross-arm64.sh unpacks their arm64 builds).
 # Idempotent: when everything is present it does nothing and prints nothing.
 set -euo pipefail
 
-packages=(
-  build-essential cmake pkg-config git ccache
-  libeigen3-dev libopencv-dev libdlib-dev libdlib-data
+libraries=(
+  libeigen3-dev libopencv-dev libdlib-dev
   libmodbus-dev libgpiod-dev libcamera-dev libsystemd-dev
   libcli11-dev libspdlog-dev libfmt-dev libtomlplusplus-dev nlohmann-json3-dev
   libtinyobjloader-dev libcpp-httplib-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  socat ffmpeg systemd clang-format
-  libola-dev ola liblo-dev liblo-tools libltc-dev
-  lintian chromium chromium-driver
+  libola-dev liblo-dev libltc-dev
   libasound2-dev libaubio-dev libavformat-dev libavcodec-dev libswresample-dev libswscale-dev libavutil-dev
 )
+# What the build, the daemon and the tests run or read besides.
+tools=(
+  build-essential cmake pkg-config git ccache libdlib-data
+  socat ffmpeg systemd clang-format ola liblo-tools
+  lintian chromium chromium-driver
+)
+
+if [ "${1:-}" = "--libraries" ]; then
+  printf '%s\n' "${libraries[@]}"
+  exit 0
+fi
+packages=("$@")
+[ ${#packages[@]} -eq 0 ] && packages=("${libraries[@]}" "${tools[@]}")
 
 missing=()
 for p in "${packages[@]}"; do
