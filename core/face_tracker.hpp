@@ -86,6 +86,14 @@ class FaceTracker {
   /// the start of the track drops it. Returns whether the frame is accepted.
   bool check_mouth(double lip_luma);
 
+  /// While a face is tracked, ShapePredictor::warm(): the predictor data the next frame will
+  /// most likely read, into the cache. Returns whether it did (a face is tracked). Allocates
+  /// nothing.
+  bool warm() const {
+    if (tracking_) predictor_.warm();
+    return tracking_;
+  }
+
   /// FaceAppearance similarity of the last tracked frame (1 on acquisition).
   double appearance() const { return appearance_; }
 

@@ -118,10 +118,12 @@ void BM_LandmarksAgainstDlib(benchmark::State& state) {
 
 BENCHMARK(BM_LandmarksAgainstDlib)->Unit(benchmark::kMicrosecond)->MinTime(2.0)->Repetitions(3);
 
-// Ours alone, each frame after a pause of the argument in µs: 0 is back to back, as
+// Ours alone, each frame after a pause of the first argument in µs: 0 is back to back, as
 // `lipdrive process` runs; 16667 is a 60 fps camera's period, as the daemon runs. The
 // difference is what the frame costs when the machine has done other things (or nothing)
 // since the last one: on a shared VM the predictor's ~4 MB per frame come from further away.
+// Second argument 1: ShapePredictor::warm() 2 ms before the frame, as the daemon's default
+// `[scheduling] warm_ahead_us = 2000` does.
 void BM_LandmarksPaced(benchmark::State& state) {
   if (!std::filesystem::exists(test::kClip)) {
     state.SkipWithError("needs the generated clip");
@@ -134,12 +136,22 @@ void BM_LandmarksPaced(benchmark::State& state) {
   }
   ShapePredictor ours(test::shared_predictor());
   Landmarks2D landmarks;
-  std::vector<double> us;
+  std::vector<double> us, warm_us;
   us.reserve(static_cast<std::size_t>(state.max_iterations));
+  warm_us.reserve(static_cast<std::size_t>(state.max_iterations));
   const auto pause = std::chrono::microseconds(state.range(0));
+  constexpr auto kWarmAhead = std::chrono::microseconds(2000);
   std::size_t frame = 0;
   for (auto _ : state) {
-    if (pause.count() > 0) std::this_thread::sleep_for(pause);
+    if (state.range(1) == 0) {
+      std::this_thread::sleep_for(pause);
+    } else {
+      std::this_thread::sleep_for(pause - kWarmAhead);
+      const auto warm_start = std::chrono::steady_clock::now();
+      ours.warm();
+      warm_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - warm_start).count());
+      std::this_thread::sleep_for(kWarmAhead);
+    }
     const auto start = std::chrono::steady_clock::now();
     ours.predict(clip.gray[frame], clip.boxes[frame], landmarks);
     benchmark::DoNotOptimize(landmarks);
@@ -148,9 +160,10 @@ void BM_LandmarksPaced(benchmark::State& state) {
   }
   state.counters["median_us"] = median(us);
   state.counters["p99_us"] = quantile(us, 0.99);
+  if (!warm_us.empty()) state.counters["warm_median_us"] = median(warm_us);
 }
 
-BENCHMARK(BM_LandmarksPaced)->Arg(0)->Arg(16667)->Unit(benchmark::kMicrosecond)->Iterations(300)->Repetitions(2);
+BENCHMARK(BM_LandmarksPaced)->Args({0, 0})->Args({16667, 0})->Args({16667, 1})->Unit(benchmark::kMicrosecond)->Iterations(300)->Repetitions(2);
 
 }  // namespace
 }  // namespace lipdrive

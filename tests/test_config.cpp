@@ -62,7 +62,7 @@ class ConfigTest : public ::testing::Test {
 TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   write("type = \"sim\"\nreal_time = false\nfps = 30\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
         "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
-        "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0");
+        "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0");
   const Config config = load_config(file_);
   EXPECT_EQ(config.model.file, kModel);
   EXPECT_EQ(config.model.landmark_set, LandmarkSet::F5) << "the ICT head's, with the jaw line";
@@ -78,6 +78,7 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   EXPECT_EQ(config.status.print_interval_ms, 0);
   EXPECT_EQ(config.scheduling.realtime_priority, 20);
   EXPECT_EQ(config.scheduling.cpu_latency_us, 0);
+  EXPECT_EQ(config.scheduling.warm_ahead_us, 0);
 }
 
 TEST_F(ConfigTest, UnknownKeysAreRejectedAnywhere) {
@@ -115,6 +116,8 @@ TEST_F(ConfigTest, OutOfRangeValuesNameTheRange) {
   EXPECT_THAT(error(), HasSubstr("key scheduling.realtime_priority: must be between 0 and 99, got 100"));
   write("", "[scheduling]\ncpu_latency_us = 20000");
   EXPECT_THAT(error(), HasSubstr("key scheduling.cpu_latency_us: must be between -1 and 10000, got 20000"));
+  write("", "[scheduling]\nwarm_ahead_us = -5");
+  EXPECT_THAT(error(), HasSubstr("key scheduling.warm_ahead_us: must be between 0 and 100000, got -5"));
   write_text(fmt::format("[model]\nfile = \"{}\"\nauto_identity_frames = -1\n", kModel.string()));
   EXPECT_THAT(error(), HasSubstr("key model.auto_identity_frames: must be between 0 and 3600, got -1"));
 }

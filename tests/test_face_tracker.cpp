@@ -24,6 +24,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -220,6 +221,32 @@ TEST(ShapePredictor, TheMedianOfSevenStartsMovesLessWithTheBoxThanOneStart) {
              one_start / boxes, seven_starts / boxes);
   EXPECT_LT(seven_starts, one_start);
   EXPECT_EQ(allocations, 0);
+}
+
+// warm() only reads: the daemon calls it between frames (`[scheduling] warm_ahead_us`), so it
+// must change no prediction and allocate nothing.
+TEST(ShapePredictor, WarmingChangesNoPredictionAndAllocatesNothing) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  const cv::Mat face = generated_face();
+  ASSERT_FALSE(face.empty()) << "no frame in " << kFixtureDir / "talking_face.avi";
+  const auto faces = detect(face);
+  ASSERT_FALSE(faces.empty());
+  const FaceBox box{faces.front().left(), faces.front().top(), faces.front().right(), faces.front().bottom()};
+  const FaceBox moved{box.left + 6, box.top + 4, box.right + 6, box.bottom + 4};
+  ShapePredictor warmed(test::shared_predictor()), cold(test::shared_predictor());
+  Landmarks2D a, b;
+  warmed.predict(face, box, a);
+  cold.predict(face, box, b);
+  test::count_allocations_on_this_thread(true);
+  const long before = test::allocation_count();
+  warmed.warm();
+  const long allocations = test::allocation_count() - before;
+  test::count_allocations_on_this_thread(false);
+  EXPECT_EQ(allocations, 0);
+  warmed.predict(face, moved, a);
+  cold.predict(face, moved, b);
+  EXPECT_EQ(a, b);
+  EXPECT_TRUE(std::ranges::equal(warmed.last_leaves(), cold.last_leaves()));
 }
 
 // The compact file holds exactly what reading dlib's file gives: the same landmarks, bit for

@@ -265,6 +265,7 @@ void read_scheduling(Section scheduling, Config& config) {
   Config::Scheduling& s = config.scheduling;
   s.realtime_priority = scheduling.integer("realtime_priority", s.realtime_priority, 0, 99);
   s.cpu_latency_us = scheduling.integer("cpu_latency_us", s.cpu_latency_us, -1, 10'000);
+  s.warm_ahead_us = scheduling.integer("warm_ahead_us", s.warm_ahead_us, 0, 100'000);
   scheduling.reject_unknown_keys();
 }
 

@@ -143,6 +143,7 @@ struct Config {
   struct Scheduling {
     int realtime_priority = 0;  // the frame path's threads under SCHED_FIFO, 1..99; 0 = off
     int cpu_latency_us = -1;    // PM QoS: the CPUs' wake-up latency while the frame path runs; -1 = the system's
+    int warm_ahead_us = 2000;   // the predictor's data read into the cache this long before a frame is due; 0 = off
   } scheduling;
 
   struct Performer {

@@ -41,6 +41,7 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
   settings.neutral_frames = config_.performer.neutral_frames;
   settings.realtime_priority = config_.scheduling.realtime_priority;
   settings.cpu_latency_us = config_.scheduling.cpu_latency_us;
+  settings.warm_ahead = std::chrono::microseconds(config_.scheduling.warm_ahead_us);
   settings.model_mismatch = model_mismatch(config_, profile_, files);
   settings.voice_crossfade = std::chrono::milliseconds(config_.voice.crossfade_ms);
   settings.voice_timeout = std::chrono::milliseconds(config_.voice.audio_timeout_ms);
@@ -180,8 +181,8 @@ void Daemon::print_stats() const {
   const PipelineStats s = pipeline_->stats();
   fmt::print(stderr,
              "frames: captured {}, processed {}, tracked {}, dropped {}, corrupt {}, lost track {}, "
-             "disconnects {}\n",
-             s.captured, s.processed, s.tracked, s.dropped, s.corrupt, s.lost_track, s.disconnects);
+             "disconnects {}, caches warmed before {}\n",
+             s.captured, s.processed, s.tracked, s.dropped, s.corrupt, s.lost_track, s.disconnects, s.warmed);
   fmt::print(stderr, "capture->processed latency: median {:.2f} ms, p99 {:.2f} ms\n", s.processed_median_ms,
              s.processed_p99_ms);
   fmt::print(stderr,

@@ -64,6 +64,10 @@ class FrameProcessor {
     identity_frames_.clear();
   }
 
+  /// Before the next frame is due: the landmark predictor's data into the cache
+  /// (FaceTracker::warm; false while no face is tracked). Allocates nothing.
+  bool warm() const { return tracker_.warm(); }
+
   /// Whether an AutoIdentity is still gathering its frames (the fit is on the mean face, then
   /// on the provisional identity, and the expression weights read 0).
   bool identity_pending() const { return automatic_.frames > 0; }

@@ -31,13 +31,13 @@ Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FramePro
                    PipelineSettings settings, DriveControl& control)
     : capture_(std::move(source), "", "the drive holds, then eases to neutral"),
       processor_(std::move(processor)),
-      half_period_ns_(frame_period_ns(capture_.frame_rate()) / 2),
+      frame_period_ns_(frame_period_ns(capture_.frame_rate())),
       settings_(std::move(settings)),
       control_(control),
       channels_(settings_.channels, settings_.safety),
       hand_over_(std::chrono::nanoseconds(settings_.voice_crossfade).count()),
       // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
-      max_result_age_ns_(3 * frame_period_ns(capture_.frame_rate())) {}
+      max_result_age_ns_(3 * frame_period_ns_) {}
 
 Pipeline::~Pipeline() { stop(); }
 
@@ -94,8 +94,23 @@ void Pipeline::stop() {
 void Pipeline::processing_loop() {
   const auto wait = std::chrono::nanoseconds(settings_.frame_wait);
   while (!stop_processing_.load(std::memory_order_relaxed)) {
-    if (const CapturedFrame* frame = capture_.take(wait)) {
+    const CapturedFrame* frame = nullptr;
+    if (warm_at_ns_ > 0) {
+      // Idle until shortly before the next frame is due, then read what it will need: in the
+      // 16 ms between a camera's frames other work evicts the predictor's data from the cache.
+      // (When the last frame ended later than that, what it read is still there.)
+      const std::int64_t idle_ns = warm_at_ns_ - monotonic_ns();
+      warm_at_ns_ = 0;
+      if (idle_ns > 0) {
+        frame = capture_.take(std::chrono::nanoseconds(idle_ns));
+        if (frame == nullptr && processor_->warm()) warmed_.fetch_add(1, std::memory_order_relaxed);
+      }
+    }
+    if (frame == nullptr) frame = capture_.take(wait);
+    if (frame != nullptr) {
       process(*frame);
+      if (settings_.warm_ahead.count() > 0)
+        warm_at_ns_ = frame->capture_time_ns + frame_period_ns_ - std::chrono::nanoseconds(settings_.warm_ahead).count();
     } else if (capture_.ended() || capture_.failed()) {
       finished_.store(true, std::memory_order_release);
     }
@@ -119,7 +134,7 @@ void Pipeline::process(const CapturedFrame& frame) {
     result.measures = measurement.measures;
     result.visemes = measurement.visemes;
     result.signals = drive_signals(measurement.measures, measurement.visemes, profile_);
-    if (const auto side = side_ ? side_->protrusion_near(frame.capture_time_ns, half_period_ns_) : std::nullopt) {
+    if (const auto side = side_ ? side_->protrusion_near(frame.capture_time_ns, frame_period_ns_ / 2) : std::nullopt) {
       result.side_used = true;
       result.protrusion_side = *side;
       result.signals[Signal::kProtrusion] = static_cast<float>(profile_.protrusion_side.scale(*side));
@@ -311,6 +326,7 @@ PipelineStats Pipeline::stats() const {
   s.tracked = tracked_.load(std::memory_order_relaxed);
   s.dropped = capture.dropped;
   s.lost_track = lost_track_.load(std::memory_order_relaxed);
+  s.warmed = warmed_.load(std::memory_order_relaxed);
   s.disconnects = capture.disconnects;
   s.corrupt = capture.corrupt;
   s.processed_median_ms = processed_latency_.quantile_ms(0.5);

@@ -65,6 +65,10 @@ struct PipelineSettings {
   /// While the frame path runs, the CPUs wake from idle within this many microseconds
   /// (drivers/cpu_latency.hpp); -1 = the system's idle states.
   int cpu_latency_us = -1;
+  /// This long before the next frame is due (the last one's capture time plus the camera's
+  /// period), the processing thread reads the landmark predictor's data into the cache
+  /// (FrameProcessor::warm); 0 = never.
+  std::chrono::microseconds warm_ahead{2000};
   bool model_mismatch = false;  // reported in the status word (kStatusModelMismatch)
   /// [voice]: the cross-fade between video and voice; no sound for voice_timeout: the voice is gone.
   std::chrono::milliseconds voice_crossfade{150}, voice_timeout{200};
@@ -74,6 +78,7 @@ struct PipelineStats {
   std::uint64_t captured = 0, processed = 0, tracked = 0;
   std::uint64_t dropped = 0;                             // frames replaced by a newer one before processing
   std::uint64_t lost_track = 0;                          // times a tracked face was lost
+  std::uint64_t warmed = 0;                              // frames whose landmark data was read into the cache before they came (warm_ahead)
   std::uint64_t disconnects = 0;                         // times the source went away
   std::uint64_t corrupt = 0;                             // frames the source could not decode
   double processed_median_ms = 0, processed_p99_ms = 0;  // capture -> processed
@@ -166,7 +171,7 @@ class Pipeline {
   Capture capture_;
   std::unique_ptr<FrameProcessor> processor_;
   std::unique_ptr<SideCamera> side_;
-  std::int64_t half_period_ns_;  // pairing window: half the front camera's frame period
+  std::int64_t frame_period_ns_;  // the front camera's
   PipelineSettings settings_;
   std::vector<Output*> outputs_;
   std::vector<ResultSink*> sinks_;
@@ -187,6 +192,7 @@ class Pipeline {
   bool capturing_neutral_ = false;
   std::uint32_t calibrate_requests_seen_ = 0;
   std::int64_t last_watchdog_ns_ = 0;
+  std::int64_t warm_at_ns_ = 0;  // when to warm the caches for the next frame; 0: not before it
   bool was_tracked_ = false;
 
   ChannelBank channels_;             // output thread's
@@ -197,7 +203,7 @@ class Pipeline {
   LatencyHistogram processed_latency_, output_latency_, voice_latency_;
   LatencyHistogram hand_off_time_, landmarks_time_, fit_time_, measures_time_;  // processing thread's stages
 
-  std::atomic<std::uint64_t> processed_{0}, tracked_{0}, lost_track_{0};
+  std::atomic<std::uint64_t> processed_{0}, tracked_{0}, lost_track_{0}, warmed_{0};
   std::atomic<bool> finished_{false};
   std::atomic<bool> stop_processing_{false}, stop_outputs_{false};
   std::int64_t start_ns_ = 0;
