@@ -181,7 +181,7 @@ void Daemon::print_stats() const {
   const PipelineStats s = pipeline_->stats();
   fmt::print(stderr,
              "frames: captured {}, processed {}, tracked {}, dropped {}, corrupt {}, lost track {}, "
-             "disconnects {}, caches warmed before {}\n",
+             "disconnects {}, warmed ahead {}\n",
              s.captured, s.processed, s.tracked, s.dropped, s.corrupt, s.lost_track, s.disconnects, s.warmed);
   fmt::print(stderr, "capture->processed latency: median {:.2f} ms, p99 {:.2f} ms\n", s.processed_median_ms,
              s.processed_p99_ms);
