@@ -109,13 +109,22 @@ void Pipeline::processing_loop() {
     if (frame == nullptr) frame = capture_.take(wait);
     if (frame != nullptr) {
       process(*frame);
-      if (settings_.warm_ahead.count() > 0)
-        warm_at_ns_ = frame->capture_time_ns + frame_period_ns_ - std::chrono::nanoseconds(settings_.warm_ahead).count();
+      warm_at_ns_ = warm_time(frame->capture_time_ns);
     } else if (capture_.ended() || capture_.failed()) {
       finished_.store(true, std::memory_order_release);
     }
     ping_watchdog(monotonic_ns());
   }
+}
+
+std::int64_t Pipeline::warm_time(std::int64_t capture_ns) {
+  const std::int64_t interval_ns = capture_ns - last_capture_ns_;
+  last_capture_ns_ = capture_ns;
+  if (settings_.warm_ahead.count() <= 0) return 0;
+  // The next frame is expected one interval after this one: the last interval, so that a camera
+  // that slows down in the dark is followed; the nominal period after a gap or at the start.
+  const bool recent = interval_ns > 0 && interval_ns < 4 * frame_period_ns_;
+  return capture_ns + (recent ? interval_ns : frame_period_ns_) - std::chrono::nanoseconds(settings_.warm_ahead).count();
 }
 
 void Pipeline::process(const CapturedFrame& frame) {

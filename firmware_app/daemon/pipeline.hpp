@@ -65,8 +65,8 @@ struct PipelineSettings {
   /// While the frame path runs, the CPUs wake from idle within this many microseconds
   /// (drivers/cpu_latency.hpp); -1 = the system's idle states.
   int cpu_latency_us = -1;
-  /// This long before the next frame is due (the last one's capture time plus the camera's
-  /// period), the processing thread reads the landmark predictor's data into the cache
+  /// This long before the next frame is due (the last one's capture time plus the last interval
+  /// between frames), the processing thread reads the landmark predictor's data into the cache
   /// (FrameProcessor::warm); 0 = never.
   std::chrono::microseconds warm_ahead{2000};
   bool model_mismatch = false;  // reported in the status word (kStatusModelMismatch)
@@ -167,6 +167,9 @@ class Pipeline {
   /// Completes a drive frame from the channel bank and publishes it for readers.
   void fill(DriveFrame& frame, std::int64_t now_ns);
   void ping_watchdog(std::int64_t now_ns);
+  /// Processing thread: when to warm the caches for the frame after the one captured at
+  /// `capture_ns`; 0 = not at all.
+  std::int64_t warm_time(std::int64_t capture_ns);
 
   Capture capture_;
   std::unique_ptr<FrameProcessor> processor_;
@@ -192,7 +195,8 @@ class Pipeline {
   bool capturing_neutral_ = false;
   std::uint32_t calibrate_requests_seen_ = 0;
   std::int64_t last_watchdog_ns_ = 0;
-  std::int64_t warm_at_ns_ = 0;  // when to warm the caches for the next frame; 0: not before it
+  std::int64_t warm_at_ns_ = 0;       // when to warm the caches for the next frame; 0: not before it
+  std::int64_t last_capture_ns_ = 0;  // of the last frame processed
   bool was_tracked_ = false;
 
   ChannelBank channels_;             // output thread's
