@@ -564,6 +564,11 @@ float ShapePredictor::feature_contrast() const {
   return std::sqrt((pixels - pixels.mean()).square().mean());
 }
 
+const ShapePredictorData::Leaf& ShapePredictor::chosen_leaf(int tree) const {
+  const int leaves_per_tree = 1 << data_->tree_depth_;
+  return data_->leaf_increments_[static_cast<std::size_t>(tree) * leaves_per_tree + leaves_[tree]];
+}
+
 void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out) {
   const ShapePredictorData& d = *data_;
   constexpr int kShapeSize = ShapePredictorData::kShapeSize;
@@ -589,17 +594,14 @@ void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2
         }
       for (int lane = 0; lane < lanes; ++lane) leaves_[t + lane] = static_cast<std::uint8_t>(node[lane] - splits);
     }
-    const auto leaf = [&](int t) -> const ShapePredictorData::Leaf& {
-      return d.leaf_increments_[static_cast<std::size_t>(t) * (splits + 1) + leaves_[t]];
-    };
     constexpr int kPrefetchDistance = 24;
     for (int t = first_tree; t < end_tree; ++t) {
       if (t + kPrefetchDistance < end_tree) {
-        const char* ahead = reinterpret_cast<const char*>(&leaf(t + kPrefetchDistance));
+        const char* ahead = reinterpret_cast<const char*>(&chosen_leaf(t + kPrefetchDistance));
         for (std::size_t byte = 0; byte < sizeof(ShapePredictorData::Leaf); byte += 64) __builtin_prefetch(ahead + byte);
         __builtin_prefetch(ahead + sizeof(ShapePredictorData::Leaf) - 1);  // a leaf starts anywhere in a line
       }
-      const ShapePredictorData::Leaf& increments = leaf(t);
+      const ShapePredictorData::Leaf& increments = chosen_leaf(t);
       for (int k = 0; k < kShapeSize; ++k) shape_[k] += increments.increment(k);
     }
   }
@@ -626,8 +628,7 @@ void ShapePredictor::warm() const {
   read(d.delta_.data(), d.delta_.size_bytes());
   for (int t = 0; t < d.num_trees(); ++t) {
     read(&d.splits_[static_cast<std::size_t>(t) * splits], splits * sizeof(ShapePredictorData::Split));
-    read(&d.leaf_increments_[static_cast<std::size_t>(t) * (splits + 1) + leaves_[t]],
-         sizeof(ShapePredictorData::Leaf));
+    read(&chosen_leaf(t), sizeof(ShapePredictorData::Leaf));
   }
 }
 

@@ -185,6 +185,8 @@ class ShapePredictor {
 
  private:
   void read_feature_pixels(const cv::Mat& gray, const FaceBox& box, int cascade);
+  /// The leaf the last walk of `tree` ended in (leaves_).
+  const ShapePredictorData::Leaf& chosen_leaf(int tree) const;
 
   std::shared_ptr<const ShapePredictorData> data_;
   std::vector<float> shape_;           // current shape estimate, box-normalised
