@@ -60,7 +60,7 @@ class ConfigTest : public ::testing::Test {
 };
 
 TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
-  write("type = \"sim\"\nreal_time = false\nfps = 30\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
+  write("type = \"sim\"\nreal_time = false\nfps = 30\nrotation = 270\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
         "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
         "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0");
   const Config config = load_config(file_);
@@ -72,6 +72,7 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   EXPECT_TRUE(config.camera.sim.loop);
   EXPECT_EQ(config.camera.v4l2.frame_rate, 30);
   EXPECT_EQ(config.camera.sim.faults.drop_every, 7);
+  EXPECT_EQ(config.camera.rotation, Rotation::k270);
   EXPECT_EQ(config.camera.sim.faults.stall, std::chrono::milliseconds(20));
   EXPECT_EQ(config.log_level, spdlog::level::debug);
   EXPECT_EQ(config.recording.flush_interval_ms, 250);
@@ -108,6 +109,10 @@ TEST_F(ConfigTest, OutOfRangeValuesNameTheRange) {
   EXPECT_EQ(error(), file_.string() + ": key camera.fps: must be between 1 and 240, got 500");
   write("", "[log]\nlevel = \"loud\"");
   EXPECT_THAT(error(), HasSubstr("key log.level: must be one of trace, debug, info, warn, error, got \"loud\""));
+  write("rotation = 45");
+  EXPECT_THAT(error(), HasSubstr("key camera.rotation: 45 is not a quarter turn: 0, 90, 180 or 270 (degrees clockwise)"));
+  write("", fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"\nrotation = 360", kClip.string()));
+  EXPECT_THAT(error(), HasSubstr("key side_camera.rotation: must be between 0 and 270, got 360"));
   write("format = \"RGB3\"");
   EXPECT_THAT(error(), HasSubstr("key camera.format: unknown pixel format 'RGB3'"));
   write("", "[recording]\nflush_interval_ms = 0");

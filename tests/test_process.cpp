@@ -382,6 +382,40 @@ TEST_F(ProcessTest, EveryImageOfAFolderIsDetectedAfresh) {
   }
 }
 
+TEST_F(ProcessTest, FramesOfACameraOnItsSideAreTurnedUprightFirst) {
+  // Frames of the generated clip as a camera mounted a quarter turn anticlockwise records them:
+  // --rotate 90 must give exactly the rows of the upright frames (the turn loses no pixel).
+  cv::VideoCapture capture((kFixtureDir / "talking_face.avi").string());
+  const fs::path upright = dir_ / "upright", sideways = dir_ / "sideways";
+  fs::create_directories(upright);
+  fs::create_directories(sideways);
+  cv::Mat bgr, turned;
+  for (int i = 0; i < 40 && capture.read(bgr); ++i) {
+    if (i % 8 != 0) continue;
+    const std::string name = fmt::format("frame{:02}.png", i);
+    cv::imwrite((upright / name).string(), bgr);
+    cv::rotate(bgr, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+    cv::imwrite((sideways / name).string(), turned);
+  }
+  const fs::path expected = dir_ / "upright.csv", got = dir_ / "turned.csv", unturned = dir_ / "unturned.csv";
+  for (const auto& [args, out] : {std::pair{upright.string(), expected}, std::pair{sideways.string() + " --rotate 90", got}}) {
+    const ProcessRun run = run_process(args + " --include-landmarks --out " + out.string(), dir_);
+    ASSERT_EQ(run.exit_code, 0) << args << ": " << run.stderr_text;
+  }
+  // Without the turn the face lies on its side, which is no face to the detector.
+  const ProcessRun run = run_process(sideways.string() + " --out " + unturned.string(), dir_);
+  EXPECT_EQ(run.exit_code, 65);
+  EXPECT_NE(run.stderr_text.find("no face found in any of the 5 frames"), std::string::npos) << run.stderr_text;
+  const CsvTable want = read_csv_table(expected), have = read_csv_table(got);
+  ASSERT_EQ(want.rows.size(), 5u);
+  for (const double tracked : numeric_column(want, "tracked")) ASSERT_EQ(tracked, 1);
+  EXPECT_EQ(have.header, want.header);
+  EXPECT_EQ(have.rows, want.rows);
+  const ProcessRun wrong = run_process(sideways.string() + " --rotate 45", dir_);
+  EXPECT_NE(wrong.exit_code, 0);
+  EXPECT_NE(wrong.stderr_text.find("--rotate"), std::string::npos) << wrong.stderr_text;
+}
+
 TEST_F(ProcessTest, MissingInputFailsWithItsName) {
   const ProcessRun run = run_process((dir_ / "nothing.avi").string(), dir_);
   EXPECT_EQ(run.exit_code, 66);

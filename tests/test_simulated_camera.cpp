@@ -1,10 +1,15 @@
 #include "sim/simulated_camera.hpp"
 
+#include "core/image_rotation.hpp"
+#include "firmware_app/config/config.hpp"
+#include "firmware_app/config/factories.hpp"
+
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <array>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -161,6 +166,54 @@ TEST_F(SimulatedCameraTest, ReplaysASingleImage) {
   SimulatedCamera looping({.input = path, .loop = true});
   for (int i = 0; i < 3; ++i) ASSERT_EQ(looping.grab(frame, kLongTimeout), GrabStatus::kFrame);
   EXPECT_EQ(frame.sequence, 2u);
+}
+
+TEST(ImageRotation, QuarterTurnsAreClockwiseAndKeepTheirBuffer) {
+  const cv::Mat in = (cv::Mat_<std::uint8_t>(2, 3) << 1, 2, 3, 4, 5, 6);
+  cv::Mat out;
+  rotate_plane(in, out, Rotation::k90);  // the left column becomes the top row, read upwards
+  EXPECT_EQ(cv::countNonZero(out != (cv::Mat_<std::uint8_t>(3, 2) << 4, 1, 5, 2, 6, 3)), 0) << out;
+  const std::uint8_t* buffer = out.data;
+  rotate_plane(in, out, Rotation::k90);
+  EXPECT_EQ(out.data, buffer) << "a frame of the same size reuses the buffer";
+  rotate_plane(in, out, Rotation::k180);
+  EXPECT_EQ(cv::countNonZero(out != (cv::Mat_<std::uint8_t>(2, 3) << 6, 5, 4, 3, 2, 1)), 0) << out;
+  rotate_plane(in, out, Rotation::k270);
+  EXPECT_EQ(cv::countNonZero(out != (cv::Mat_<std::uint8_t>(3, 2) << 3, 6, 2, 5, 1, 4)), 0) << out;
+  rotate_plane(in, out, Rotation::k0);
+  EXPECT_EQ(cv::countNonZero(out != in), 0) << out;
+  rotate_plane(cv::Mat(), out, Rotation::k90);
+  EXPECT_TRUE(out.empty()) << "a monochrome camera's missing chroma stays missing";
+
+  for (const int degrees : {0, 90, 180, 270}) EXPECT_EQ(static_cast<int>(*rotation_from_degrees(degrees)), degrees);
+  for (const int degrees : {-90, 45, 360}) EXPECT_FALSE(rotation_from_degrees(degrees)) << degrees;
+}
+
+TEST_F(SimulatedCameraTest, TheConfiguredCameraDeliversItsFramesTurnedUpright) {
+  const auto path = dir_ / "sideways.png";
+  cv::imwrite(path.string(), numbered_frame(3));
+  SimulatedCamera plain({.input = path});
+  Frame upright;
+  ASSERT_EQ(plain.grab(upright, kLongTimeout), GrabStatus::kFrame);
+
+  Config config;
+  config.camera.sim = {.input = path, .real_time = false, .loop = true};
+  config.camera.rotation = Rotation::k90;
+  const std::unique_ptr<FrameSource> camera = make_source(config);
+  EXPECT_NE(camera->describe().find("turned 90°"), std::string::npos) << camera->describe();
+  Frame frame;
+  ASSERT_EQ(camera->grab(frame, kLongTimeout), GrabStatus::kFrame);
+  cv::Mat expected;
+  cv::rotate(upright.gray, expected, cv::ROTATE_90_CLOCKWISE);
+  ASSERT_EQ(frame.gray.size(), expected.size());
+  EXPECT_EQ(cv::countNonZero(frame.gray != expected), 0);
+  cv::rotate(upright.cr, expected, cv::ROTATE_90_CLOCKWISE);
+  ASSERT_EQ(frame.cr.size(), expected.size()) << "the chroma turns with the luma";
+  EXPECT_EQ(cv::countNonZero(frame.cr != expected), 0);
+  EXPECT_EQ(frame.source, "sideways.png");
+  const std::uint8_t* buffer = frame.gray.data;
+  ASSERT_EQ(camera->grab(frame, kLongTimeout), GrabStatus::kFrame);
+  EXPECT_EQ(frame.gray.data, buffer) << "the next frame is turned into the same buffer";
 }
 
 void expect_source_error_naming(const fs::path& path) {

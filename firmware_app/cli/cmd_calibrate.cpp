@@ -12,6 +12,7 @@
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/cli/recording.hpp"
+#include "firmware_app/daemon/rotated_camera.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/loaded_files.hpp"
@@ -39,9 +40,11 @@ struct CalibrateOptions {
   double motion_seconds = 10;   // live cameras; a recording runs to its end
 };
 
+/// The configured camera, or the recording that stands in for it, turned as the camera is
+/// ([camera] rotation).
 std::unique_ptr<FrameSource> open_source(const Config& config, const CalibrateOptions& options) {
   if (options.input.empty()) return make_source(config);
-  return std::make_unique<SimulatedCamera>(open_recording(options.input));
+  return upright(std::make_unique<SimulatedCamera>(open_recording(options.input)), config.camera.rotation);
 }
 
 /// Per index, the median over the neutral frames: a blink or a mistracked frame moves nothing.

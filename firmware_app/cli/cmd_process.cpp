@@ -8,6 +8,7 @@
 // A second thread decodes ahead into a small ring of preallocated luma buffers, so decoding
 // overlaps tracking and fitting on a 2-core board; rows still come out in frame order.
 #include "core/calibration.hpp"
+#include "core/image_rotation.hpp"
 #include "core/side_profile.hpp"
 #include "core/statistics.hpp"
 #include "core/voice_training.hpp"
@@ -60,6 +61,7 @@ struct ProcessOptions {
   std::string timecode;               // the first frame's timecode: adds the timecode column
   double timecode_fps = 25;
   std::filesystem::path voice;  // a voice model: adds the voice's columns from the clip's sound
+  std::optional<int> rotate;    // degrees clockwise that stand the frames upright; else [camera] rotation
 };
 
 /// --voice: the voice model's measures for every frame of the clip, from its sound alone.
@@ -205,7 +207,7 @@ class FrameRing {
   std::condition_variable changed_;
 };
 
-void decode_all(SimulatedCamera& camera, FrameRing& ring) {
+void decode_all(SimulatedCamera& camera, Rotation rotation, FrameRing& ring) {
   Frame frame;
   for (;;) {
     DecodedFrame* slot = ring.free_slot();
@@ -218,8 +220,8 @@ void decode_all(SimulatedCamera& camera, FrameRing& ring) {
       switch (status) {
         case GrabStatus::kFrame:
           slot->kind = DecodedFrame::Kind::kFrame;
-          frame.gray.copyTo(slot->gray);
-          frame.cr.copyTo(slot->cr);
+          rotate_plane(frame.gray, slot->gray, rotation);
+          rotate_plane(frame.cr, slot->cr, rotation);
           slot->sequence = frame.sequence;
           slot->media_time_s = frame.media_time_s;
           slot->source.assign(frame.source);
@@ -305,7 +307,8 @@ void run_process(const ProcessOptions& options) {
 
   const std::int64_t start = monotonic_ns();
   FrameRing ring(4);
-  std::thread decoder(decode_all, std::ref(camera), std::ref(ring));
+  const Rotation rotation = options.rotate ? *rotation_from_degrees(*options.rotate) : config.camera.rotation;
+  std::thread decoder(decode_all, std::ref(camera), rotation, std::ref(ring));
   // Stops and joins the decoder however this scope is left.
   const auto stop_decoder = [&](std::thread* t) {
     ring.close();
@@ -411,6 +414,10 @@ void add_process_command(CLI::App& app) {
   cmd->add_option("--voice", options->voice,
                   "a voice model (.lpv, `lipdrive voice train`): adds open_voice, width_voice, protrusion_voice, "
                   "seal_voice from the clip's sound alone");
+  cmd->add_option("--rotate", options->rotate,
+                  "degrees clockwise that stand the frames upright (a camera mounted on its side); default: the "
+                  "--config's [camera] rotation, else 0")
+      ->check(CLI::IsMember({0, 90, 180, 270}));
   cmd->callback([options] { run_process(*options); });
 }
 

@@ -229,6 +229,11 @@ void read_camera(Section camera, Config::Camera& config_camera, bool check_devic
   v4l2.height = static_cast<unsigned>(camera.integer("height", 480, 0, 8192));
   v4l2.frame_rate = camera.integer("fps", 60, 1, 240);
   config_camera.libcamera_id = camera.string("camera_id", "");
+  const int rotation = camera.integer("rotation", 0, 0, 270);
+  if (const auto turn = rotation_from_degrees(rotation))
+    config_camera.rotation = *turn;
+  else
+    camera.fail("rotation", fmt::format("{} is not a quarter turn: 0, 90, 180 or 270 (degrees clockwise)", rotation));
   camera.reject_unknown_keys();
 
   if (!check_devices) return;

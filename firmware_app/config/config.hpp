@@ -8,6 +8,7 @@
 #include "core/dmx_footprint.hpp"
 #include "core/drive_channels.hpp"
 #include "core/fitting.hpp"
+#include "core/image_rotation.hpp"
 #include "core/landmarks.hpp"
 #include "core/side_profile.hpp"
 #include "core/timecode.hpp"
@@ -125,6 +126,7 @@ struct Config {
     SimulatedCameraOptions sim;  // input resolved: never empty
     V4l2Options v4l2;
     std::string libcamera_id;  // "" = the first camera; size and rate as for v4l2
+    Rotation rotation = Rotation::k0;  // the clockwise turn that stands its frames upright
   } camera;
 
   std::optional<Camera> side_camera;  // [side_camera] when enabled

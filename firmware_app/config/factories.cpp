@@ -9,6 +9,7 @@
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/daemon/rotated_camera.hpp"
 #include "sim/ltc_generator.hpp"
 #include "sim/simulated_audio.hpp"
 #include "sim/simulated_camera.hpp"
@@ -20,8 +21,9 @@ namespace lipdrive {
 
 namespace {
 
-/// The camera of one configuration table ("camera" or "side_camera", for messages).
-std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Config& config, std::string_view table,
+/// The camera of one configuration table ("camera" or "side_camera", for messages), as it
+/// delivers its frames.
+std::unique_ptr<FrameSource> open_camera(const Config::Camera& camera, const Config& config, std::string_view table,
                                          ReplayClock* clock = nullptr) {
   if (camera.type == Config::Camera::Type::kV4l2) return std::make_unique<V4l2Camera>(camera.v4l2);
 #ifdef LIPDRIVE_HAVE_LIBCAMERA
@@ -40,6 +42,12 @@ std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Con
   } catch (const SourceError& e) {
     throw ConfigError(fmt::format("{}: key {}.input: {}", config.file.string(), table, e.what()));
   }
+}
+
+/// open_camera()'s camera, its frames turned upright ([camera] rotation).
+std::unique_ptr<FrameSource> make_camera(const Config::Camera& camera, const Config& config, std::string_view table,
+                                         ReplayClock* clock = nullptr) {
+  return upright(open_camera(camera, config, table, clock), camera.rotation);
 }
 
 /// [timecode]'s LTC input. A sound card input that cannot be opened yet is retried in the
