@@ -185,6 +185,25 @@ TEST(ImageRotation, QuarterTurnsAreClockwiseAndKeepTheirBuffer) {
   rotate_plane(cv::Mat(), out, Rotation::k90);
   EXPECT_TRUE(out.empty()) << "a monochrome camera's missing chroma stays missing";
 
+  // Planes whose sides are and are not multiples of the 8 × 8 blocks, against OpenCV's turn.
+  cv::RNG random(7);
+  for (const cv::Size size : {cv::Size(640, 480), cv::Size(21, 13), cv::Size(8, 8), cv::Size(5, 1), cv::Size(3, 17)}) {
+    cv::Mat plane(size, CV_8UC1), expected;
+    random.fill(plane, cv::RNG::UNIFORM, 0, 256);
+    for (const auto& [rotation, code] : {std::pair{Rotation::k90, cv::ROTATE_90_CLOCKWISE},
+                                         std::pair{Rotation::k180, cv::ROTATE_180},
+                                         std::pair{Rotation::k270, cv::ROTATE_90_COUNTERCLOCKWISE}}) {
+      rotate_plane(plane, out, rotation);
+      cv::rotate(plane, expected, code);
+      ASSERT_EQ(out.size(), expected.size()) << size << " turned " << static_cast<int>(rotation);
+      EXPECT_EQ(cv::countNonZero(out != expected), 0) << size << " turned " << static_cast<int>(rotation);
+    }
+  }
+  const cv::Mat wide(40, 64, CV_8UC1, cv::Scalar(9));
+  rotate_plane(wide(cv::Rect(3, 2, 33, 17)), out, Rotation::k90);  // rows apart by more than their width
+  EXPECT_EQ(out.size(), cv::Size(17, 33));
+  EXPECT_EQ(cv::countNonZero(out != 9), 0);
+
   for (const int degrees : {0, 90, 180, 270}) EXPECT_EQ(static_cast<int>(*rotation_from_degrees(degrees)), degrees);
   for (const int degrees : {-90, 45, 360}) EXPECT_FALSE(rotation_from_degrees(degrees)) << degrees;
 }
