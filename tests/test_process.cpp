@@ -281,6 +281,38 @@ TEST_F(ProcessTest, SideInputAddsTheSideViewProtrusion) {
   EXPECT_LE(a.rmse_scaled, 0.1);
 }
 
+TEST_F(ProcessTest, ASideRecordingOnItsSideIsTurnedUprightFirst) {
+  const fs::path front = kFixtureDir / "talking_face.avi", side = kFixtureDir / "side_view.avi";
+  LIPDRIVE_REQUIRE_BUILT(front);
+  LIPDRIVE_REQUIRE_BUILT(side);
+  // The side clip's first 60 frames as images, upright and turned a quarter turn anticlockwise.
+  cv::VideoCapture capture(side.string());
+  const fs::path upright = dir_ / "upright", sideways = dir_ / "sideways";
+  fs::create_directories(upright);
+  fs::create_directories(sideways);
+  cv::Mat bgr, turned;
+  for (int i = 0; i < 60 && capture.read(bgr); ++i) {
+    const std::string name = fmt::format("side{:03}.png", i);
+    cv::imwrite((upright / name).string(), bgr);
+    cv::rotate(bgr, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+    cv::imwrite((sideways / name).string(), turned);
+  }
+  const fs::path expected = dir_ / "upright.csv", got = dir_ / "turned.csv";
+  for (const auto& [args, out] : {std::pair{"--side " + upright.string(), expected},
+                                  std::pair{"--side " + sideways.string() + " --side-rotate 90", got}}) {
+    const ProcessRun run = run_process(fmt::format("{} {} --out {}", front.string(), args, out.string()), dir_);
+    ASSERT_EQ(run.exit_code, 0) << args << ": " << run.stderr_text;
+  }
+  const std::vector<double> want = numeric_column(read_csv_table(expected), "protrusion_side");
+  const std::vector<double> have = numeric_column(read_csv_table(got), "protrusion_side");
+  ASSERT_GT(std::count_if(want.begin(), want.end(), [](double p) { return std::isfinite(p); }), 20);
+  ASSERT_EQ(have.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    ASSERT_EQ(std::isfinite(have[i]), std::isfinite(want[i])) << "row " << i;
+    if (std::isfinite(want[i])) EXPECT_EQ(have[i], want[i]) << "row " << i;
+  }
+}
+
 // The lips close on "bin" and "blue" and rest closed after the sentence: in `open`, the signal
 // that drives the figure (landmarks and pixels, the default configuration), and in the fitted
 // height of the generated head. The ICT head's fitted height is recorded, not bounded: its lips

@@ -22,6 +22,7 @@
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/paths.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
+#include "firmware_app/daemon/rotated_camera.hpp"
 #include "firmware_app/tables/measures_csv.hpp"
 #include "sim/simulated_camera.hpp"
 
@@ -61,8 +62,14 @@ struct ProcessOptions {
   std::string timecode;               // the first frame's timecode: adds the timecode column
   double timecode_fps = 25;
   std::filesystem::path voice;  // a voice model: adds the voice's columns from the clip's sound
-  std::optional<int> rotate;    // degrees clockwise that stand the frames upright; else [camera] rotation
+  std::optional<int> rotate;       // degrees clockwise that stand the frames upright; else [camera] rotation
+  std::optional<int> side_rotate;  // the same for --side; else [side_camera] rotation
 };
+
+/// --rotate or --side-rotate when given, else the configured camera's rotation.
+Rotation rotation_of(const std::optional<int>& option, Rotation configured) {
+  return option ? *rotation_from_degrees(*option) : configured;
+}
 
 /// --voice: the voice model's measures for every frame of the clip, from its sound alone.
 class VoiceColumns {
@@ -108,15 +115,16 @@ std::optional<std::pair<std::int32_t, TimecodeRate>> timecode_start(const Proces
 /// the reference fixed on its first frames, which must show the performer at rest.
 class SideInput {
  public:
-  explicit SideInput(const ProcessOptions& options)
+  /// The recording's frames turned by `rotation` first, as the side camera's are.
+  SideInput(const ProcessOptions& options, Rotation rotation)
       : meter_(SideProfileSettings{.facing =
                                        options.side_facing == "left" ? ProfileFacing::kLeft : ProfileFacing::kRight}),
-        camera_(open_recording(options.side)) {
+        camera_(open(options.side, rotation)) {
     std::vector<cv::Mat> neutral;
-    SimulatedCamera first(open_recording(options.side));
+    const std::unique_ptr<FrameSource> first = open(options.side, rotation);
     Frame frame;
     for (GrabStatus status; static_cast<int>(neutral.size()) < options.side_neutral_frames &&
-                            (status = first.grab(frame, std::chrono::milliseconds(0))) != GrabStatus::kEndOfStream;) {
+                            (status = first->grab(frame, std::chrono::milliseconds(0))) != GrabStatus::kEndOfStream;) {
       if (status == GrabStatus::kFrame) neutral.push_back(frame.gray.clone());
     }
     try {
@@ -131,7 +139,7 @@ class SideInput {
   std::optional<double> next() {
     Frame frame;
     GrabStatus status;
-    while ((status = camera_.grab(frame, std::chrono::milliseconds(0))) == GrabStatus::kTimeout) {
+    while ((status = camera_->grab(frame, std::chrono::milliseconds(0))) == GrabStatus::kTimeout) {
     }
     if (status != GrabStatus::kFrame) return std::nullopt;
     const SideMeasure measure = meter_.measure(frame.gray, reference_);
@@ -139,8 +147,12 @@ class SideInput {
   }
 
  private:
+  static std::unique_ptr<FrameSource> open(const std::filesystem::path& recording, Rotation rotation) {
+    return upright(std::make_unique<SimulatedCamera>(open_recording(recording)), rotation);
+  }
+
   SideProfileMeter meter_;
-  SimulatedCamera camera_;
+  std::unique_ptr<FrameSource> camera_;
   SideReference reference_;
 };
 
@@ -289,7 +301,9 @@ void run_process(const ProcessOptions& options) {
   }
   std::ostream& out = options.out.empty() ? std::cout : file;
   std::optional<SideInput> side;
-  if (!options.side.empty()) side.emplace(options);
+  if (!options.side.empty())
+    side.emplace(options, rotation_of(options.side_rotate,
+                                      config.side_camera ? config.side_camera->rotation : Rotation::k0));
   std::optional<VoiceColumns> voice;
   if (!options.voice.empty()) voice.emplace(options.voice, options.input);
   if (timecode)
@@ -307,8 +321,8 @@ void run_process(const ProcessOptions& options) {
 
   const std::int64_t start = monotonic_ns();
   FrameRing ring(4);
-  const Rotation rotation = options.rotate ? *rotation_from_degrees(*options.rotate) : config.camera.rotation;
-  std::thread decoder(decode_all, std::ref(camera), rotation, std::ref(ring));
+  std::thread decoder(decode_all, std::ref(camera), rotation_of(options.rotate, config.camera.rotation),
+                      std::ref(ring));
   // Stops and joins the decoder however this scope is left.
   const auto stop_decoder = [&](std::thread* t) {
     ring.close();
@@ -407,6 +421,10 @@ void add_process_command(CLI::App& app) {
                   "first side frames at rest that fix the reference line")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
+  cmd->add_option("--side-rotate", options->side_rotate,
+                  "degrees clockwise that stand the side recording's frames upright; default: the --config's "
+                  "[side_camera] rotation, else 0")
+      ->check(CLI::IsMember({0, 90, 180, 270}));
   cmd->add_option("--timecode", options->timecode,
                   "timecode of the first frame (HH:MM:SS:FF): adds a timecode column, the recording's time from it");
   cmd->add_option("--timecode-fps", options->timecode_fps, "timecode rate: 24, 25, 29.97 (drop-frame) or 30")
