@@ -87,7 +87,7 @@ class Session {
     session->acquire();
     session->configure(options);
     session->map_buffers();
-    session->start(options.frame_rate);
+    session->start(options.frame_rate, options.exposure_us);
     return session;
   }
 
@@ -227,7 +227,7 @@ class Session {
     completed_.reserve(requests_.size());
   }
 
-  void start(double frame_rate) {
+  void start(double frame_rate, int exposure_us) {
     camera_->requestCompleted.connect(this, &Session::on_request_completed);
     camera_->disconnected.connect(this, &Session::on_disconnected);
     connected_ = true;
@@ -242,6 +242,15 @@ class Session {
         frame_rate_ = frame_rate;
       } else {
         spdlog::warn("libcamera {}: no frame duration control; {} fps not applied", camera_->id(), frame_rate);
+      }
+    }
+    if (exposure_us > 0) {
+      if (camera_->controls().count(&libcamera::controls::ExposureTime) &&
+          camera_->controls().count(&libcamera::controls::AeEnable)) {
+        controls.set(libcamera::controls::AeEnable, false);
+        controls.set(libcamera::controls::ExposureTime, exposure_us);
+      } else {
+        spdlog::warn("libcamera {}: no manual exposure control; exposure left automatic", camera_->id());
       }
     }
     if (const int error = camera_->start(&controls); error < 0) fail("cannot start: " + error_text(error));

@@ -39,6 +39,7 @@ struct LibcameraOptions {
   unsigned width = 0;     // 0 keeps the camera's default size for the viewfinder role
   unsigned height = 0;
   double frame_rate = 0;  // frames per second; 0 keeps the camera's default
+  int exposure_us = 0;    // 0: the camera's automatic exposure; else manual, this long ([camera.controls])
 };
 
 class LibcameraCamera final : public FrameSource {

@@ -8,6 +8,7 @@
 #include <sys/mman.h>
 
 #include <opencv2/core.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <array>
@@ -128,6 +129,7 @@ class StreamOpener {
     negotiated.format = choose_format(options.format);
     set_format(options, negotiated);
     negotiated.frame_rate = set_frame_rate(options.frame_rate);
+    set_controls(options.controls);
     negotiated.buffer_count = map_buffers(options.buffer_count);
     start_streaming();
     return std::move(stream_);
@@ -223,6 +225,38 @@ class StreamOpener {
     }
     if (!known) known = system_.ioctl(stream_->fd, VIDIOC_G_PARM, &parameters) == 0;
     return known && interval.numerator ? double(interval.denominator) / interval.numerator : 0;
+  }
+
+  void set_controls(const V4l2Controls& controls) {
+    if (controls.exposure_us > 0 && set_control(V4L2_CID_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL, "exposure_auto"))
+      set_control(V4L2_CID_EXPOSURE_ABSOLUTE, (controls.exposure_us + 50) / 100, "exposure_absolute (100 µs)");
+    if (controls.gain >= 0) set_control(V4L2_CID_GAIN, controls.gain, "gain");
+    if (controls.power_line_hz >= 0)
+      set_control(V4L2_CID_POWER_LINE_FREQUENCY,
+                  controls.power_line_hz == 50   ? V4L2_CID_POWER_LINE_FREQUENCY_50HZ
+                  : controls.power_line_hz == 60 ? V4L2_CID_POWER_LINE_FREQUENCY_60HZ
+                                                 : V4L2_CID_POWER_LINE_FREQUENCY_DISABLED,
+                  "power_line_frequency");
+  }
+
+  /// VIDIOC_QUERYCTRL for the control's range, then VIDIOC_S_CTRL with the value clamped to
+  /// it; false, logged, when the camera lacks the control or refuses the value.
+  bool set_control(std::uint32_t id, std::int32_t value, const char* name) {
+    v4l2_queryctrl query{};
+    query.id = id;
+    if (system_.ioctl(stream_->fd, VIDIOC_QUERYCTRL, &query) == -1 || (query.flags & V4L2_CTRL_FLAG_DISABLED)) {
+      spdlog::warn("{}: the camera has no control {}; left as the camera sets it", path_, name);
+      return false;
+    }
+    v4l2_control control{.id = id, .value = std::clamp(value, query.minimum, query.maximum)};
+    if (control.value != value)
+      spdlog::warn("{}: {} {} is outside the camera's range {}..{}; set to {}", path_, name, value, query.minimum,
+                   query.maximum, control.value);
+    if (system_.ioctl(stream_->fd, VIDIOC_S_CTRL, &control) == -1) {
+      spdlog::warn("{}: the camera refused {} {}: {}", path_, name, control.value, error_text(errno));
+      return false;
+    }
+    return true;
   }
 
   unsigned map_buffers(unsigned wanted) {

@@ -41,6 +41,17 @@ enum class PixelFormat { kAuto, kGrey, kNv12, kYuyv, kMjpeg };
 PixelFormat parse_pixel_format(std::string_view name);
 std::string_view pixel_format_name(PixelFormat format);
 
+/// Image controls, set every time the device is opened (a replugged camera has forgotten
+/// them). A head rig under stage light wants a fixed, short exposure: automatic exposure pumps
+/// with the lights (and with it the lips' brightness the pixel measures read), and a long one
+/// blurs fast lip movement. A control the camera lacks, or a value outside its range (clamped
+/// to it), is logged naming the device; the camera still delivers frames.
+struct V4l2Controls {
+  int exposure_us = 0;     // 0: the camera's automatic exposure; else manual, this long (100 µs steps)
+  int gain = -1;           // -1: as the camera sets it; else V4L2_CID_GAIN in the driver's units
+  int power_line_hz = -1;  // -1: as the camera sets it; 0: no anti-flicker filter; 50 or 60 Hz mains
+};
+
 struct V4l2Options {
   /// A path (/dev/video0) or a name under /dev/v4l/by-id/ (usb-Vendor_Cam-video-index0).
   /// A by-id name survives re-enumeration: after an unplug the same camera is reopened
@@ -53,6 +64,7 @@ struct V4l2Options {
   unsigned height = 0;    // 0 keeps the device's current size
   double frame_rate = 0;  // frames per second; 0 keeps the device's current rate
   unsigned buffer_count = 4;
+  V4l2Controls controls;
   std::chrono::milliseconds reconnect_initial{100};
   std::chrono::milliseconds reconnect_max{5000};
 };

@@ -49,6 +49,7 @@ FakeV4l2Device::DeviceState FakeV4l2Device::power_on_state() const {
   state.bytes_per_line = pix.bytesperline;
   state.image_size = pix.sizeimage;
   state.frame_rate = config_.frame_rates.at(0);
+  for (const v4l2_queryctrl& control : config_.controls) state.controls[control.id] = control.default_value;
   return state;
 }
 
@@ -121,6 +122,9 @@ int FakeV4l2Device::ioctl(int fd, unsigned long request, void* argument) {
     case VIDIOC_DQBUF: return dequeue_buffer(fd, *static_cast<v4l2_buffer*>(argument));
     case VIDIOC_STREAMON: return stream_on(*static_cast<v4l2_buf_type*>(argument));
     case VIDIOC_STREAMOFF: return stream_off(*static_cast<v4l2_buf_type*>(argument));
+    case VIDIOC_QUERYCTRL: return query_control(*static_cast<v4l2_queryctrl*>(argument));
+    case VIDIOC_G_CTRL: return get_control(*static_cast<v4l2_control*>(argument));
+    case VIDIOC_S_CTRL: return set_control(*static_cast<v4l2_control*>(argument));
     default: return fail(ENOTTY);
   }
 }
@@ -446,5 +450,35 @@ void FakeV4l2Device::unplug() {
 }
 
 void FakeV4l2Device::replug() { plugged_ = true; }
+
+int FakeV4l2Device::query_control(v4l2_queryctrl& query) {
+  const auto offered = std::ranges::find(config_.controls, query.id, &v4l2_queryctrl::id);
+  // The kernel's answer for a control the device lacks: asking is no misuse.
+  if (offered == config_.controls.end()) return fail(EINVAL);
+  query = *offered;
+  return 0;
+}
+
+int FakeV4l2Device::get_control(v4l2_control& control) {
+  const auto value = state_.controls.find(control.id);
+  if (value == state_.controls.end()) return fail(EINVAL);
+  control.value = value->second;
+  return 0;
+}
+
+/// Strict where the kernel clamps integer controls: a driver should have read the range first.
+int FakeV4l2Device::set_control(v4l2_control& control) {
+  const auto offered = std::ranges::find(config_.controls, control.id, &v4l2_queryctrl::id);
+  if (offered == config_.controls.end()) return fail(EINVAL, "VIDIOC_S_CTRL of a control the device does not offer");
+  if (control.value < offered->minimum || control.value > offered->maximum)
+    return fail(ERANGE, "VIDIOC_S_CTRL outside the range VIDIOC_QUERYCTRL reports");
+  state_.controls[control.id] = control.value;
+  return 0;
+}
+
+std::optional<std::int32_t> FakeV4l2Device::control(std::uint32_t id) const {
+  const auto value = state_.controls.find(id);
+  return value == state_.controls.end() ? std::nullopt : std::optional(value->second);
+}
 
 }  // namespace lipdrive::testing

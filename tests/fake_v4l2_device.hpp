@@ -45,6 +45,8 @@ class FakeV4l2Device final : public SystemCalls {
     /// A broken driver: every buffer carries this timestamp (flagged monotonic) instead of
     /// the capture time.
     std::optional<timeval> broken_timestamp;
+    /// The controls it offers (VIDIOC_QUERYCTRL), each at its default_value after power-on.
+    std::vector<v4l2_queryctrl> controls;
   };
 
   struct Event {
@@ -90,6 +92,8 @@ class FakeV4l2Device final : public SystemCalls {
   std::int64_t last_timestamp_ns() const { return last_timestamp_ns_; }
   int last_poll_timeout_ms() const { return last_poll_timeout_ms_; }
   const std::vector<Event>& events() const { return events_; }
+  /// A control's value; nullopt for one the device does not offer.
+  std::optional<std::int32_t> control(std::uint32_t id) const;
   /// Calls that broke a V4L2 rule; a correct driver leaves this empty.
   const std::vector<std::string>& violations() const { return violations_; }
 
@@ -113,6 +117,7 @@ class FakeV4l2Device final : public SystemCalls {
     bool streaming = false;
     int owner_fd = -1;  // the fd that allocated the buffers
     std::uint32_t next_sequence = 0;
+    std::map<std::uint32_t, std::int32_t> controls;  // id -> value
   };
   struct OpenFile {
     unsigned generation;
@@ -138,6 +143,9 @@ class FakeV4l2Device final : public SystemCalls {
   int queue_buffer(v4l2_buffer& buffer);
   int dequeue_buffer(int fd, v4l2_buffer& buffer);
   int stream_on(const v4l2_buf_type& type);
+  int query_control(v4l2_queryctrl& query);
+  int get_control(v4l2_control& control);
+  int set_control(v4l2_control& control);
   int stream_off(const v4l2_buf_type& type);
   void release_buffers();
   void describe(unsigned index, v4l2_buffer& buffer) const;

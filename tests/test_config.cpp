@@ -60,7 +60,8 @@ class ConfigTest : public ::testing::Test {
 };
 
 TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
-  write("type = \"sim\"\nreal_time = false\nfps = 30\nrotation = 270\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
+  write("type = \"sim\"\nreal_time = false\nfps = 30\nrotation = 270\n[camera.controls]\nexposure_us = 4000\n"
+        "power_line_hz = 50\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
         "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
         "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0");
   const Config config = load_config(file_);
@@ -73,6 +74,9 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   EXPECT_EQ(config.camera.v4l2.frame_rate, 30);
   EXPECT_EQ(config.camera.sim.faults.drop_every, 7);
   EXPECT_EQ(config.camera.rotation, Rotation::k270);
+  EXPECT_EQ(config.camera.v4l2.controls.exposure_us, 4000);
+  EXPECT_EQ(config.camera.v4l2.controls.gain, -1) << "as the camera sets it";
+  EXPECT_EQ(config.camera.v4l2.controls.power_line_hz, 50);
   EXPECT_EQ(config.camera.sim.faults.stall, std::chrono::milliseconds(20));
   EXPECT_EQ(config.log_level, spdlog::level::debug);
   EXPECT_EQ(config.recording.flush_interval_ms, 250);
@@ -109,6 +113,8 @@ TEST_F(ConfigTest, OutOfRangeValuesNameTheRange) {
   EXPECT_EQ(error(), file_.string() + ": key camera.fps: must be between 1 and 240, got 500");
   write("", "[log]\nlevel = \"loud\"");
   EXPECT_THAT(error(), HasSubstr("key log.level: must be one of trace, debug, info, warn, error, got \"loud\""));
+  write("[camera.controls]\npower_line_hz = 55");
+  EXPECT_THAT(error(), HasSubstr("key camera.controls.power_line_hz: must be -1, 0, 50 or 60, got 55"));
   write("rotation = 45");
   EXPECT_THAT(error(), HasSubstr("key camera.rotation: 45 is not a quarter turn: 0, 90, 180 or 270 (degrees clockwise)"));
   write("", fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"\nrotation = 360", kClip.string()));

@@ -4,8 +4,9 @@
 #include "firmware_app/outputs/debouncer.hpp"
 #include "firmware_app/outputs/gpio_output.hpp"
 
+#include "tests/captured_log.hpp"
+
 #include <gtest/gtest.h>
-#include <spdlog/sinks/ringbuffer_sink.h>
 #include <spdlog/spdlog.h>
 
 #include <cstdint>
@@ -15,6 +16,8 @@
 
 namespace lipdrive {
 namespace {
+
+using testing::CapturedLog;
 
 constexpr std::int64_t kMs = 1'000'000;
 constexpr std::uint16_t kTrackingOk = kStatusTracking | kStatusCameraConnected;
@@ -74,27 +77,6 @@ DriveFrame frame_at(std::int64_t time_ns, std::uint16_t status = kTrackingOk) {
   frame.status = status;
   return frame;
 }
-
-/// Keeps the log of a test in memory, so that tests can count messages.
-class CapturedLog {
- public:
-  CapturedLog() : sink_(std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(100)), previous_(spdlog::default_logger()) {
-    auto logger = std::make_shared<spdlog::logger>("test", sink_);
-    logger->set_level(spdlog::level::debug);
-    spdlog::set_default_logger(logger);
-  }
-  ~CapturedLog() { spdlog::set_default_logger(previous_); }
-
-  int count(spdlog::level::level_enum level) const {
-    int n = 0;
-    for (const auto& message : sink_->last_raw()) n += message.level == level;
-    return n;
-  }
-
- private:
-  std::shared_ptr<spdlog::sinks::ringbuffer_sink_mt> sink_;
-  std::shared_ptr<spdlog::logger> previous_;
-};
 
 class GpioOutputTest : public ::testing::Test {
  protected:

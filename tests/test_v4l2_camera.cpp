@@ -2,6 +2,7 @@
 // the real system calls fail cleanly.
 #include "drivers/clock.hpp"
 #include "drivers/v4l2_camera.hpp"
+#include "tests/captured_log.hpp"
 #include "tests/fake_v4l2_device.hpp"
 
 #include <gtest/gtest.h>
@@ -18,6 +19,7 @@ namespace lipdrive {
 namespace {
 
 using namespace std::chrono_literals;
+using testing::CapturedLog;
 using testing::FakeV4l2Device;
 using testing::test_pattern;
 using testing::expected_cr;
@@ -164,6 +166,84 @@ TEST(V4l2Negotiation, ResolvesByIdNames) {
   options.device = "usb-Fake_Cam-video-index0";
   V4l2Camera camera(options, device);
   EXPECT_EQ(camera.describe(), config.path);
+}
+
+// ---- image controls --------------------------------------------------------------------
+
+/// A UVC camera's exposure, gain and anti-flicker controls, at their power-on values.
+std::vector<v4l2_queryctrl> uvc_controls() {
+  const auto control = [](std::uint32_t id, std::int32_t min, std::int32_t max, std::int32_t value) {
+    v4l2_queryctrl query{};
+    query.id = id;
+    query.minimum = min;
+    query.maximum = max;
+    query.step = 1;
+    query.default_value = value;
+    return query;
+  };
+  return {control(V4L2_CID_EXPOSURE_AUTO, 0, 3, V4L2_EXPOSURE_APERTURE_PRIORITY),
+          control(V4L2_CID_EXPOSURE_ABSOLUTE, 3, 2047, 250), control(V4L2_CID_GAIN, 0, 255, 64),
+          control(V4L2_CID_POWER_LINE_FREQUENCY, 0, 2, V4L2_CID_POWER_LINE_FREQUENCY_60HZ)};
+}
+
+void expect_controls_set(const FakeV4l2Device& device) {
+  EXPECT_EQ(device.control(V4L2_CID_EXPOSURE_AUTO), V4L2_EXPOSURE_MANUAL);
+  EXPECT_EQ(device.control(V4L2_CID_EXPOSURE_ABSOLUTE), 40) << "4 ms in 100 µs steps";
+  EXPECT_EQ(device.control(V4L2_CID_GAIN), 12);
+  EXPECT_EQ(device.control(V4L2_CID_POWER_LINE_FREQUENCY), V4L2_CID_POWER_LINE_FREQUENCY_50HZ);
+}
+
+TEST(V4l2Controls, AreSetOnOpenAndAgainWhenTheCameraComesBack) {
+  FakeV4l2Device::Config config;
+  config.controls = uvc_controls();
+  FakeV4l2Device device(config);
+  V4l2Options options = options_for(config);
+  options.controls = {.exposure_us = 4000, .gain = 12, .power_line_hz = 50};
+  {
+    V4l2Camera camera(options, device);
+    expect_controls_set(device);
+    // A replugged camera is back at its power-on values until the driver sets them again.
+    device.unplug();
+    device.replug();
+    EXPECT_EQ(device.control(V4L2_CID_GAIN), 64);
+    Frame frame;
+    GrabStatus status = GrabStatus::kDisconnected;
+    for (int attempt = 0; attempt < 20 && status != GrabStatus::kTimeout; ++attempt) status = camera.grab(frame, 20ms);
+    ASSERT_EQ(status, GrabStatus::kTimeout) << "reopened";
+    expect_controls_set(device);
+  }
+  expect_clean(device);
+
+  // Nothing asked for: the camera's own settings stay.
+  FakeV4l2Device untouched(config);
+  { V4l2Camera camera(options_for(config), untouched); }
+  EXPECT_EQ(untouched.control(V4L2_CID_EXPOSURE_AUTO), V4L2_EXPOSURE_APERTURE_PRIORITY);
+  EXPECT_EQ(untouched.control(V4L2_CID_GAIN), 64);
+  expect_clean(untouched);
+}
+
+TEST(V4l2Controls, AMissingControlOrAValueOutOfRangeIsLoggedAndFramesFlow) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_GREY};
+  config.controls = uvc_controls();
+  config.controls.erase(config.controls.begin() + 2);  // no gain
+  FakeV4l2Device device(config);
+  V4l2Options options = options_for(config);
+  options.controls = {.exposure_us = 500'000, .gain = 12, .power_line_hz = 0};
+  CapturedLog log;
+  {
+    V4l2Camera camera(options, device);
+    EXPECT_EQ(device.control(V4L2_CID_EXPOSURE_ABSOLUTE), 2047) << "clamped to the camera's longest";
+    EXPECT_EQ(device.control(V4L2_CID_POWER_LINE_FREQUENCY), V4L2_CID_POWER_LINE_FREQUENCY_DISABLED);
+    const std::vector<std::string> warnings = log.messages(spdlog::level::warn);
+    ASSERT_EQ(warnings.size(), 2u);
+    EXPECT_EQ(warnings[0], config.path + ": exposure_absolute (100 µs) 5000 is outside the camera's range 3..2047; set to 2047");
+    EXPECT_EQ(warnings[1], config.path + ": the camera has no control gain; left as the camera sets it");
+    Frame frame;
+    ASSERT_TRUE(device.produce(test_pattern(device.size(), 1)));
+    EXPECT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  }
+  expect_clean(device);
 }
 
 TEST(V4l2Negotiation, ParsesPixelFormatNames) {

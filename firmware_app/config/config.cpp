@@ -198,6 +198,15 @@ void read_faults(Section faults, SimulatedCameraOptions::FaultInjection& out) {
   faults.reject_unknown_keys();
 }
 
+void read_controls(Section controls, V4l2Controls& out) {
+  out.exposure_us = controls.integer("exposure_us", 0, 0, 1'000'000);
+  out.gain = controls.integer("gain", -1, -1, 65'535);
+  out.power_line_hz = controls.integer("power_line_hz", -1, -1, 60);
+  if (out.power_line_hz != -1 && out.power_line_hz != 0 && out.power_line_hz != 50 && out.power_line_hz != 60)
+    controls.fail("power_line_hz", fmt::format("must be -1, 0, 50 or 60, got {}", out.power_line_hz));
+  controls.reject_unknown_keys();
+}
+
 void read_camera(Section camera, Config::Camera& config_camera, bool check_devices = true) {
   const std::string type = camera.one_of("type", "sim", {"sim", "v4l2", "libcamera"});
   config_camera.type = type == "sim"    ? Config::Camera::Type::kSim
@@ -228,6 +237,7 @@ void read_camera(Section camera, Config::Camera& config_camera, bool check_devic
   v4l2.width = static_cast<unsigned>(camera.integer("width", 640, 0, 8192));
   v4l2.height = static_cast<unsigned>(camera.integer("height", 480, 0, 8192));
   v4l2.frame_rate = camera.integer("fps", 60, 1, 240);
+  read_controls(camera.table("controls"), v4l2.controls);
   config_camera.libcamera_id = camera.string("camera_id", "");
   const int rotation = camera.integer("rotation", 0, 0, 270);
   if (const auto turn = rotation_from_degrees(rotation))

@@ -31,7 +31,8 @@ std::unique_ptr<FrameSource> open_camera(const Config::Camera& camera, const Con
     const V4l2Options& format = camera.v4l2;
     try {
       return std::make_unique<LibcameraCamera>(
-          LibcameraOptions{camera.libcamera_id, format.width, format.height, format.frame_rate});
+          LibcameraOptions{camera.libcamera_id, format.width, format.height, format.frame_rate,
+                           format.controls.exposure_us});
     } catch (const SourceError& e) {
       throw ConfigError(fmt::format("{}: key {}.type: {}", config.file.string(), table, e.what()));
     }
