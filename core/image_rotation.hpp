@@ -14,9 +14,10 @@ enum class Rotation { k0 = 0, k90 = 90, k180 = 180, k270 = 270 };
 /// The rotation of `degrees` clockwise; nullopt unless 0, 90, 180 or 270.
 std::optional<Rotation> rotation_from_degrees(int degrees);
 
-/// `in` (an 8-bit plane) turned clockwise by `rotation` into `out` (a copy for k0; an empty `in`, a monochrome
-/// camera's missing chroma, leaves `out` empty). `out` keeps its buffer while the frame size
-/// stays the same, so a stream of frames allocates once.
+/// `in` (an 8-bit plane) turned clockwise by `rotation` into `out`, which must not share its
+/// memory: a copy for k0; an empty `in` (a monochrome camera's missing chroma) leaves `out`
+/// empty. `out` keeps its buffer while the frame size stays the same, so a stream of frames
+/// allocates once.
 void rotate_plane(const cv::Mat& in, cv::Mat& out, Rotation rotation);
 
 }  // namespace lipdrive

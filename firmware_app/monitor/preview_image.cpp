@@ -44,7 +44,10 @@ std::string preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, JpegEncoder
   const int k = frame.decimation;
   if (frame.tracked) {
     const Eigen::Vector2d low = frame.landmarks.rowwise().minCoeff(), high = frame.landmarks.rowwise().maxCoeff();
-    cv::rectangle(canvas, to_canvas(low.x(), low.y(), k), to_canvas(high.x(), high.y(), k), kBoxColour, 1, cv::LINE_AA,
+    // Two pixels wide: a one-pixel anti-aliased line between two pixel rows is two half-tone rows,
+    // faint once the page scales the JPEG (the browser test counted 2151 and then 588 yellow
+    // pixels of a one-pixel box in two screenshots a moment apart).
+    cv::rectangle(canvas, to_canvas(low.x(), low.y(), k), to_canvas(high.x(), high.y(), k), kBoxColour, 2, cv::LINE_AA,
                   kShift);
     draw_contour(canvas, frame.fitted, ibug::kMouthCornerRight, ibug::kInnerCornerRight - 1, k);  // outer lips 48-59
     draw_contour(canvas, frame.fitted, ibug::kInnerCornerRight, kNumLandmarks - 1, k);            // inner lips 60-67
