@@ -237,15 +237,20 @@ class StreamOpener {
                   : controls.power_line_hz == 60 ? V4L2_CID_POWER_LINE_FREQUENCY_60HZ
                                                  : V4L2_CID_POWER_LINE_FREQUENCY_DISABLED,
                   "power_line_frequency");
+    if (controls.keep_frame_rate) set_control(V4L2_CID_EXPOSURE_AUTO_PRIORITY, 0, "exposure_auto_priority", Missing::kQuiet);
   }
+
+  /// A control the user asked for is missed aloud; one set by default only where it exists.
+  enum class Missing { kWarn, kQuiet };
 
   /// VIDIOC_QUERYCTRL for the control's range, then VIDIOC_S_CTRL with the value clamped to
   /// it; false, logged, when the camera lacks the control or refuses the value.
-  bool set_control(std::uint32_t id, std::int32_t value, const char* name) {
+  bool set_control(std::uint32_t id, std::int32_t value, const char* name, Missing missing = Missing::kWarn) {
     v4l2_queryctrl query{};
     query.id = id;
     if (system_.ioctl(stream_->fd, VIDIOC_QUERYCTRL, &query) == -1 || (query.flags & V4L2_CTRL_FLAG_DISABLED)) {
-      spdlog::warn("{}: the camera has no control {}; left as the camera sets it", path_, name);
+      spdlog::log(missing == Missing::kWarn ? spdlog::level::warn : spdlog::level::debug,
+                  "{}: the camera has no control {}; left as the camera sets it", path_, name);
       return false;
     }
     v4l2_control control{.id = id, .value = std::clamp(value, query.minimum, query.maximum)};

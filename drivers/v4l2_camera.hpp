@@ -50,6 +50,11 @@ struct V4l2Controls {
   int exposure_us = 0;     // 0: the camera's automatic exposure; else manual, this long (100 µs steps)
   int gain = -1;           // -1: as the camera sets it; else V4L2_CID_GAIN in the driver's units
   int power_line_hz = -1;  // -1: as the camera sets it; 0: no anti-flicker filter; 50 or 60 Hz mains
+  /// Automatic exposure may not lower the frame rate in the dark (a UVC camera's
+  /// V4L2_CID_EXPOSURE_AUTO_PRIORITY set to 0): the figure's latency follows the frame period.
+  /// Set only where the camera offers the control (a camera without it logs nothing); false
+  /// leaves the camera's own setting.
+  bool keep_frame_rate = true;
 };
 
 struct V4l2Options {

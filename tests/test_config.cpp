@@ -61,7 +61,7 @@ class ConfigTest : public ::testing::Test {
 
 TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   write("type = \"sim\"\nreal_time = false\nfps = 30\nrotation = 270\n[camera.controls]\nexposure_us = 4000\n"
-        "power_line_hz = 50\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
+        "power_line_hz = 50\nkeep_frame_rate = false\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
         "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
         "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0");
   const Config config = load_config(file_);
@@ -77,6 +77,7 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   EXPECT_EQ(config.camera.v4l2.controls.exposure_us, 4000);
   EXPECT_EQ(config.camera.v4l2.controls.gain, -1) << "as the camera sets it";
   EXPECT_EQ(config.camera.v4l2.controls.power_line_hz, 50);
+  EXPECT_FALSE(config.camera.v4l2.controls.keep_frame_rate);
   EXPECT_EQ(config.camera.sim.faults.stall, std::chrono::milliseconds(20));
   EXPECT_EQ(config.log_level, spdlog::level::debug);
   EXPECT_EQ(config.recording.flush_interval_ms, 250);
@@ -104,6 +105,8 @@ TEST_F(ConfigTest, WrongTypesNameTheExpectedType) {
   EXPECT_THAT(error(), HasSubstr("key camera.real_time: must be true or false, got an integer"));
   write("", "[status]\nprint_interval_ms = 1.5");
   EXPECT_THAT(error(), HasSubstr("key status.print_interval_ms: must be an integer, got a number"));
+  write("[camera.controls]\nkeep_frame_rate = 0");
+  EXPECT_THAT(error(), HasSubstr("key camera.controls.keep_frame_rate: must be true or false, got an integer"));
   write("faults = 3");
   EXPECT_THAT(error(), HasSubstr("key camera.faults: must be a table, got an integer"));
 }

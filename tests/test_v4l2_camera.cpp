@@ -170,7 +170,8 @@ TEST(V4l2Negotiation, ResolvesByIdNames) {
 
 // ---- image controls --------------------------------------------------------------------
 
-/// A UVC camera's exposure, gain and anti-flicker controls, at their power-on values.
+/// A UVC camera's exposure, gain, anti-flicker and exposure-priority controls, at their
+/// power-on values (automatic exposure may lower the frame rate).
 std::vector<v4l2_queryctrl> uvc_controls() {
   const auto control = [](std::uint32_t id, std::int32_t min, std::int32_t max, std::int32_t value) {
     v4l2_queryctrl query{};
@@ -183,7 +184,8 @@ std::vector<v4l2_queryctrl> uvc_controls() {
   };
   return {control(V4L2_CID_EXPOSURE_AUTO, 0, 3, V4L2_EXPOSURE_APERTURE_PRIORITY),
           control(V4L2_CID_EXPOSURE_ABSOLUTE, 3, 2047, 250), control(V4L2_CID_GAIN, 0, 255, 64),
-          control(V4L2_CID_POWER_LINE_FREQUENCY, 0, 2, V4L2_CID_POWER_LINE_FREQUENCY_60HZ)};
+          control(V4L2_CID_POWER_LINE_FREQUENCY, 0, 2, V4L2_CID_POWER_LINE_FREQUENCY_60HZ),
+          control(V4L2_CID_EXPOSURE_AUTO_PRIORITY, 0, 1, 1)};
 }
 
 void expect_controls_set(const FakeV4l2Device& device) {
@@ -191,6 +193,7 @@ void expect_controls_set(const FakeV4l2Device& device) {
   EXPECT_EQ(device.control(V4L2_CID_EXPOSURE_ABSOLUTE), 40) << "4 ms in 100 µs steps";
   EXPECT_EQ(device.control(V4L2_CID_GAIN), 12);
   EXPECT_EQ(device.control(V4L2_CID_POWER_LINE_FREQUENCY), V4L2_CID_POWER_LINE_FREQUENCY_50HZ);
+  EXPECT_EQ(device.control(V4L2_CID_EXPOSURE_AUTO_PRIORITY), 0);
 }
 
 TEST(V4l2Controls, AreSetOnOpenAndAgainWhenTheCameraComesBack) {
@@ -216,10 +219,32 @@ TEST(V4l2Controls, AreSetOnOpenAndAgainWhenTheCameraComesBack) {
 
   // Nothing asked for: the camera's own settings stay.
   FakeV4l2Device untouched(config);
-  { V4l2Camera camera(options_for(config), untouched); }
+  V4l2Options as_it_is = options_for(config);
+  as_it_is.controls.keep_frame_rate = false;
+  { V4l2Camera camera(as_it_is, untouched); }
   EXPECT_EQ(untouched.control(V4L2_CID_EXPOSURE_AUTO), V4L2_EXPOSURE_APERTURE_PRIORITY);
   EXPECT_EQ(untouched.control(V4L2_CID_GAIN), 64);
+  EXPECT_EQ(untouched.control(V4L2_CID_EXPOSURE_AUTO_PRIORITY), 1);
   expect_clean(untouched);
+}
+
+TEST(V4l2Controls, ByDefaultAutomaticExposureMayNotLowerTheFrameRate) {
+  FakeV4l2Device::Config config;
+  config.controls = uvc_controls();
+  FakeV4l2Device device(config);
+  CapturedLog log;
+  { V4l2Camera camera(options_for(config), device); }
+  EXPECT_EQ(device.control(V4L2_CID_EXPOSURE_AUTO_PRIORITY), 0) << "the frame rate held";
+  EXPECT_EQ(device.control(V4L2_CID_EXPOSURE_AUTO), V4L2_EXPOSURE_APERTURE_PRIORITY) << "exposure still automatic";
+  EXPECT_EQ(device.control(V4L2_CID_GAIN), 64);
+  expect_clean(device);
+
+  // A camera without the control (a CSI sensor, most non-UVC drivers): nothing to say.
+  config.controls.pop_back();
+  FakeV4l2Device plain(config);
+  { V4l2Camera camera(options_for(config), plain); }
+  EXPECT_TRUE(log.messages(spdlog::level::warn).empty());
+  expect_clean(plain);
 }
 
 TEST(V4l2Controls, AMissingControlOrAValueOutOfRangeIsLoggedAndFramesFlow) {

@@ -204,6 +204,7 @@ void read_controls(Section controls, V4l2Controls& out) {
   out.power_line_hz = controls.integer("power_line_hz", -1, -1, 60);
   if (out.power_line_hz != -1 && out.power_line_hz != 0 && out.power_line_hz != 50 && out.power_line_hz != 60)
     controls.fail("power_line_hz", fmt::format("must be -1, 0, 50 or 60, got {}", out.power_line_hz));
+  out.keep_frame_rate = controls.boolean("keep_frame_rate", true);
   controls.reject_unknown_keys();
 }
 
