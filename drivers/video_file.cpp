@@ -4,11 +4,47 @@
 
 #include <fmt/format.h>
 
+extern "C" {
+#include <libavutil/display.h>
+}
+
 #include <cmath>
+#include <cstdlib>
 
 namespace lipdrive {
 
 using ffmpeg::error_text;
+
+namespace {
+
+/// A display matrix's clockwise turn to the nearest quarter (av_display_rotation_get gives the
+/// anticlockwise angle the matrix turns by).
+DisplayOrientation orientation_of_matrix(const std::int32_t* matrix) {
+  if (matrix == nullptr) return {};
+  const double clockwise = -av_display_rotation_get(matrix);
+  if (!std::isfinite(clockwise)) return {};
+  const long quarters = std::lround(clockwise / 90.0);
+  return {.turn = static_cast<int>(((quarters % 4) + 4) % 4) * 90};
+}
+
+/// An EXIF orientation tag (FFmpeg's JPEG and TIFF decoders put it in the picture's metadata
+/// as "Orientation"): 1 as stored, 2 mirrored, 3 turned 180°, 4 mirrored and turned 180°,
+/// 5 mirrored and turned 270°, 6 turned 90°, 7 mirrored and turned 90°, 8 turned 270°
+/// (clockwise); anything else as stored.
+DisplayOrientation orientation_of_exif(const char* tag) {
+  switch (std::strtol(tag, nullptr, 10)) {
+    case 2: return {.turn = 0, .mirrored = true};
+    case 3: return {.turn = 180};
+    case 4: return {.turn = 180, .mirrored = true};
+    case 5: return {.turn = 270, .mirrored = true};
+    case 6: return {.turn = 90};
+    case 7: return {.turn = 90, .mirrored = true};
+    case 8: return {.turn = 270};
+    default: return {};
+  }
+}
+
+}  // namespace
 
 /// The demuxer, the decoder and the packet and picture they share.
 struct VideoFile::Decoder {
@@ -65,6 +101,9 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
   if (const int e = avcodec_open2(d.codec.get(), codec, nullptr); e < 0)
     d.fail(fmt::format("cannot open the video decoder: {}", error_text(e)));
 
+  stream_orientation_ = orientation_of_matrix(
+      reinterpret_cast<const std::int32_t*>(av_stream_get_side_data(video, AV_PKT_DATA_DISPLAYMATRIX, nullptr)));
+
   const AVRational rate = av_guess_frame_rate(format, video, nullptr);
   frame_rate_ = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 0;
   if (video->nb_frames > 0) {
@@ -80,14 +119,17 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   Decoder& d = *decoder_;
   if (!d.next()) return false;
   const bool converted = d.planes.convert(*d.picture, gray) && d.planes.convert_cr(*d.picture, cr);
+  const AVDictionaryEntry* exif = av_dict_get(d.picture->metadata, "Orientation", nullptr, 0);
+  orientation_ = exif != nullptr ? orientation_of_exif(exif->value) : stream_orientation_;
   av_frame_unref(d.picture.get());
   if (!converted) d.fail("cannot convert the picture to luma and chroma");
   return true;
 }
 
-void read_image(const std::filesystem::path& file, cv::Mat& gray, cv::Mat& cr) {
+DisplayOrientation read_image(const std::filesystem::path& file, cv::Mat& gray, cv::Mat& cr) {
   VideoFile image(file);
   if (!image.read(gray, cr)) throw MediaError(fmt::format("{}: cannot decode the image", file.string()));
+  return image.orientation();
 }
 
 }  // namespace lipdrive

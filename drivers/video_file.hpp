@@ -4,6 +4,8 @@
 //
 // Planes as a camera gives them: a Y'CbCr source gives its Y' plane expanded to full range
 // (0..255) and its Cr plane as coded, an RGB source BT.601 luma and Cr; a gray source no Cr.
+// As coded, not yet as shown: how the file means them to be seen (a phone held upright
+// records its frames on their side and says so) is read beside them, DisplayOrientation.
 #pragma once
 
 #include <opencv2/core/mat.hpp>
@@ -19,6 +21,16 @@ namespace lipdrive {
 /// A file that cannot be opened or decoded; the message names the file.
 struct MediaError : std::runtime_error {
   using std::runtime_error::runtime_error;
+};
+
+/// How a file means its frames to be seen: mirrored left to right first, then turned
+/// clockwise by `turn` degrees (0, 90, 180 or 270). From a video stream's display matrix
+/// (its turn to the nearest quarter; a flip in the matrix is not applied) or an image's EXIF
+/// orientation (1-8, mirrored ones included).
+struct DisplayOrientation {
+  int turn = 0;
+  bool mirrored = false;
+  bool operator==(const DisplayOrientation&) const = default;
 };
 
 class VideoFile {
@@ -38,16 +50,19 @@ class VideoFile {
   /// while the size holds). False at the end of the file, and where the rest of a damaged file
   /// cannot be decoded.
   bool read(cv::Mat& gray, cv::Mat& cr);
+  /// How the frame read last is meant to be seen.
+  DisplayOrientation orientation() const { return orientation_; }
 
  private:
   struct Decoder;
   std::unique_ptr<Decoder> decoder_;
   double frame_rate_ = 0;
   std::int64_t frame_count_ = 0;
+  DisplayOrientation stream_orientation_, orientation_;
 };
 
-/// The luma and Cr of the first frame of an image (or video) file. Throws MediaError naming
-/// the file when it cannot be opened or holds no decodable frame.
-void read_image(const std::filesystem::path& file, cv::Mat& gray, cv::Mat& cr);
+/// The luma and Cr of the first frame of an image (or video) file, and how it is meant to be
+/// seen. Throws MediaError naming the file when it cannot be opened or holds no decodable frame.
+DisplayOrientation read_image(const std::filesystem::path& file, cv::Mat& gray, cv::Mat& cr);
 
 }  // namespace lipdrive

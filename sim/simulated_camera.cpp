@@ -1,6 +1,9 @@
 #include "sim/simulated_camera.hpp"
 
+#include "core/image_rotation.hpp"
 #include "drivers/clock.hpp"
+
+#include <opencv2/core.hpp>
 
 #include <algorithm>
 #include <array>
@@ -62,7 +65,10 @@ SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options, ReplayClock* cl
     kind_ = Kind::kImages;
     images_ = {input};
     try {
-      read_image(input, single_image_, single_image_cr_);
+      Frame shown;
+      show(read_image(input, gray_, cr_), shown);
+      single_image_ = shown.gray.clone();
+      single_image_cr_ = shown.cr.clone();
     } catch (const MediaError& e) {
       throw SourceError(e.what());
     }
@@ -208,8 +214,7 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
     }
     return GrabStatus::kEndOfStream;
   }
-  frame.gray = gray_;
-  frame.cr = cr_;
+  show(video_->orientation(), frame);
   frame.media_time_s = static_cast<double>(position_) / frame_rate_;
   frame.source = video_path_;
   ++position_;
@@ -227,14 +232,27 @@ GrabStatus SimulatedCamera::read_image_frame(Frame& frame) {
     return GrabStatus::kFrame;
   }
   try {
-    read_image(images_[index], gray_, cr_);
+    show(read_image(images_[index], gray_, cr_), frame);
   } catch (const MediaError& e) {
     last_error_ = e.what();
     return GrabStatus::kCorrupt;
   }
+  return GrabStatus::kFrame;
+}
+
+void SimulatedCamera::show(DisplayOrientation orientation, Frame& frame) {
+  if (orientation.mirrored) {
+    cv::flip(gray_, gray_, 1);
+    if (!cr_.empty()) cv::flip(cr_, cr_, 1);
+  }
   frame.gray = gray_;
   frame.cr = cr_;
-  return GrabStatus::kFrame;
+  const std::optional<Rotation> turn = rotation_from_degrees(orientation.turn);
+  if (!turn || *turn == Rotation::k0) return;
+  rotate_plane(gray_, turned_gray_, *turn);
+  rotate_plane(cr_, turned_cr_, *turn);
+  frame.gray = turned_gray_;
+  frame.cr = turned_cr_;
 }
 
 }  // namespace lipdrive

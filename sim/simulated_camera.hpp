@@ -81,6 +81,9 @@ class SimulatedCamera : public FrameSource {
   GrabStatus read_frame(Frame& frame);  // kEndOfStream past the last frame
   GrabStatus read_video_frame(Frame& frame);
   GrabStatus read_image_frame(Frame& frame);
+  // gray_ and cr_ as their file means them to be seen: mirrored in place, turned into
+  // turned_gray_ / turned_cr_; `frame` points at the planes that hold them.
+  void show(DisplayOrientation orientation, Frame& frame);
   // Real-time pacing: false (after sleeping `timeout`) when the frame is not due yet.
   bool wait_until_due(std::chrono::milliseconds timeout) const;
   // Fault injection: the status while an injected disconnect or stall lasts, else nullopt.
@@ -101,7 +104,8 @@ class SimulatedCamera : public FrameSource {
   std::unique_ptr<VideoFile> video_;  // the open video (reopened to rewind)
   double frame_rate_ = 0;
   std::int64_t expected_frames_ = 0;  // container's frame count, 0 if unknown
-  cv::Mat gray_, cr_;                 // delivered luma and Cr planes, reused across frames
+  cv::Mat gray_, cr_;                 // decoded luma and Cr planes, reused across frames
+  cv::Mat turned_gray_, turned_cr_;   // the same turned as the file means them to be seen
 
   std::int64_t position_ = 0;   // index of the next frame within the recording
   std::uint64_t sequence_ = 0;  // next sequence number, never reset by looping

@@ -3,14 +3,18 @@
 // from a replayed clip, an image, a camera's MJPEG frame; the JPEG previews and PNG files.
 #include "drivers/image_codec.hpp"
 #include "drivers/video_file.hpp"
+#include "command_run.hpp"
+#include "exif_jpeg.hpp"
 #include "fixture_paths.hpp"
 
 #include <gmock/gmock.h>
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -45,6 +49,16 @@ cv::Mat gray_of(const cv::Mat& bgr) {
   cv::Mat gray;
   cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
   return gray;
+}
+
+/// A plane as its orientation means it to be seen, by OpenCV's own flip and rotate.
+cv::Mat shown(const cv::Mat& plane, DisplayOrientation orientation) {
+  cv::Mat out = plane.clone();
+  if (orientation.mirrored) cv::flip(out, out, 1);
+  if (orientation.turn == 90) cv::rotate(out, out, cv::ROTATE_90_CLOCKWISE);
+  if (orientation.turn == 180) cv::rotate(out, out, cv::ROTATE_180);
+  if (orientation.turn == 270) cv::rotate(out, out, cv::ROTATE_90_COUNTERCLOCKWISE);
+  return out;
 }
 
 class MediaFilesTest : public ::testing::Test {
@@ -196,6 +210,55 @@ TEST_F(MediaFilesTest, PngFilesHoldTheImageExactly) {
     ADD_FAILURE() << "wrote into a missing folder";
   } catch (const MediaError& e) {
     EXPECT_THAT(e.what(), HasSubstr("dir.png"));
+  }
+}
+
+TEST_F(MediaFilesTest, AnImagesExifOrientationIsReadBesideItsPlanes) {
+  const cv::Mat card = test_card();
+  const fs::path plain = dir_ / "plain.jpg";
+  ASSERT_TRUE(cv::imwrite(plain.string(), card));
+  cv::Mat gray, cr;
+  EXPECT_EQ(read_image(plain, gray, cr), DisplayOrientation{}) << "no tag: as stored";
+  // EXIF 1-8: as stored, mirrored, 180, mirrored + 180, mirrored + 270, 90, mirrored + 90, 270.
+  const std::array<DisplayOrientation, 9> expected{{{}, {}, {0, true}, {180, false}, {180, true}, {270, true},
+                                                    {90, false}, {90, true}, {270, false}}};
+  for (int tag = 1; tag <= 8; ++tag) {
+    const fs::path file = dir_ / fmt::format("exif{}.jpg", tag);
+    test::write_jpeg_with_orientation(file, card, tag);
+    const DisplayOrientation orientation = read_image(file, gray, cr);
+    EXPECT_EQ(orientation, expected[static_cast<std::size_t>(tag)]) << "EXIF " << tag;
+    ASSERT_EQ(gray.size(), card.size()) << "planes as coded";
+    // OpenCV's imread applies the tag itself: the planes shown as read must be its picture.
+    const cv::Mat opencv = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat ours = shown(gray, orientation);
+    ASSERT_EQ(ours.size(), opencv.size()) << "EXIF " << tag;
+    EXPECT_LT(mean_abs_difference(ours, opencv), 1.0) << "EXIF " << tag;
+  }
+}
+
+TEST_F(MediaFilesTest, AVideosDisplayMatrixIsReadAsAClockwiseTurn) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  // The stream's rotate tag as a phone writes it; FFmpeg's own player shows the file turned by
+  // its display matrix, and so must the planes as read be, once turned.
+  for (const int tag : {0, 90, 180, 270}) {
+    const fs::path file = dir_ / fmt::format("rotate{}.mov", tag), first = dir_ / fmt::format("rotate{}.pgm", tag);
+    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 3 -c copy -metadata:s:v:0 rotate={} {}",
+                                            test::kClip.string(), tag, file.string()))
+                  .exit_code,
+              0);
+    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 1 -pix_fmt gray {}", file.string(),
+                                            first.string()))
+                  .exit_code,
+              0);
+    VideoFile video(file);
+    cv::Mat gray, cr;
+    ASSERT_TRUE(video.read(gray, cr));
+    EXPECT_EQ(video.orientation().turn, (360 - tag) % 360) << "rotate=" << tag;
+    EXPECT_FALSE(video.orientation().mirrored);
+    const cv::Mat player = cv::imread(first.string(), cv::IMREAD_GRAYSCALE);
+    const cv::Mat ours = shown(gray, video.orientation());
+    ASSERT_EQ(ours.size(), player.size()) << "rotate=" << tag;
+    EXPECT_LT(mean_abs_difference(ours, player), 2.0) << "rotate=" << tag;
   }
 }
 

@@ -1,6 +1,7 @@
 // Acceptance tests of `lipdrive process`: accuracy on the generated talking face, lip
 // closures on real GRID speech, and bad input that must fail cleanly.
 #include "build_paths.hpp"
+#include "command_run.hpp"
 #include "core/arkit.hpp"
 #include "core/calibration.hpp"
 #include "core/face_tracker.hpp"
@@ -446,6 +447,33 @@ TEST_F(ProcessTest, FramesOfACameraOnItsSideAreTurnedUprightFirst) {
   const ProcessRun wrong = run_process(sideways.string() + " --rotate 45", dir_);
   EXPECT_NE(wrong.exit_code, 0);
   EXPECT_NE(wrong.stderr_text.find("--rotate"), std::string::npos) << wrong.stderr_text;
+}
+
+TEST_F(ProcessTest, AClipThatSaysHowToShowItIsProcessedAsShown) {
+  // A phone held upright records its frames on their side and puts a display matrix in the
+  // file; every player shows the clip upright, and so must lipdrive read it. The generated
+  // clip losslessly: as it is, and turned a quarter anticlockwise with the matrix that turns
+  // it back (the stream's rotate tag, written by a remux).
+  const fs::path upright = dir_ / "upright.mov", coded = dir_ / "coded.mov", phone = dir_ / "phone.mov";
+  const std::string clip = (kFixtureDir / "talking_face.avi").string();
+  for (const std::string& command :
+       {fmt::format("ffmpeg -v error -y -i {} -frames:v 8 -c:v ffv1 {}", clip, upright.string()),
+        fmt::format("ffmpeg -v error -y -i {} -frames:v 8 -vf transpose=cclock -c:v ffv1 {}", clip, coded.string()),
+        fmt::format("ffmpeg -v error -y -i {} -c copy -metadata:s:v:0 rotate=270 {}", coded.string(), phone.string())})
+    ASSERT_EQ(test::run_command(command).exit_code, 0) << command;
+  const fs::path expected = dir_ / "upright.csv", got = dir_ / "phone.csv";
+  for (const auto& [input, out] : {std::pair{upright, expected}, std::pair{phone, got}}) {
+    const ProcessRun run = run_process(input.string() + " --include-landmarks --out " + out.string(), dir_);
+    ASSERT_EQ(run.exit_code, 0) << input << ": " << run.stderr_text;
+  }
+  CsvTable want = read_csv_table(expected), have = read_csv_table(got);
+  ASSERT_EQ(want.rows.size(), 8u);
+  for (const double tracked : numeric_column(want, "tracked")) ASSERT_EQ(tracked, 1);
+  ASSERT_EQ(have.header, want.header);
+  const auto source = std::ranges::find(want.header, "source") - want.header.begin();
+  for (CsvTable* table : {&want, &have})
+    for (auto& row : table->rows) row.erase(row.begin() + source);
+  EXPECT_EQ(have.rows, want.rows) << "the same pixels, shown the same way";
 }
 
 TEST_F(ProcessTest, MissingInputFailsWithItsName) {

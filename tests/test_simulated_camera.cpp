@@ -3,6 +3,7 @@
 #include "core/image_rotation.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
+#include "exif_jpeg.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -233,6 +234,43 @@ TEST_F(SimulatedCameraTest, TheConfiguredCameraDeliversItsFramesTurnedUpright) {
   const std::uint8_t* buffer = frame.gray.data;
   ASSERT_EQ(camera->grab(frame, kLongTimeout), GrabStatus::kFrame);
   EXPECT_EQ(frame.gray.data, buffer) << "the next frame is turned into the same buffer";
+}
+
+TEST_F(SimulatedCameraTest, FramesAreShownAsTheirFileMeansThem) {
+  // Quadrants of four grey levels and a number: mirrored or turned wrongly, it shows.
+  cv::Mat upright(120, 160, CV_8UC3);
+  const std::array<int, 4> levels{40, 100, 160, 220};
+  for (int q = 0; q < 4; ++q)
+    upright(cv::Rect((q % 2) * 80, (q / 2) * 60, 80, 60)).setTo(cv::Scalar::all(levels[static_cast<std::size_t>(q)]));
+  cv::putText(upright, "3", {60, 80}, cv::FONT_HERSHEY_SIMPLEX, 2, cv::Scalar(0, 0, 255), 3);
+  cv::Mat expected;
+  cv::cvtColor(upright, expected, cv::COLOR_BGR2GRAY);
+  // A phone's photo stores the picture as its sensor saw it and says how to show it: EXIF 7
+  // (mirror, then turn a quarter clockwise) shows a picture stored mirrored after a quarter
+  // turn anticlockwise.
+  cv::Mat stored;
+  cv::rotate(upright, stored, cv::ROTATE_90_COUNTERCLOCKWISE);
+  cv::flip(stored, stored, 1);
+  const fs::path single = dir_ / "phone.jpg", folder = dir_ / "photos";
+  test::write_jpeg_with_orientation(single, stored, 7);
+  fs::create_directories(folder);
+  test::write_jpeg_with_orientation(folder / "a.jpg", stored, 7);
+  cv::Mat turned_only;  // the same picture stored a quarter turn anticlockwise, EXIF 6
+  cv::rotate(upright, turned_only, cv::ROTATE_90_COUNTERCLOCKWISE);
+  test::write_jpeg_with_orientation(folder / "b.jpg", turned_only, 6);
+  for (const fs::path& input : {single, folder}) {
+    SimulatedCamera camera({.input = input});
+    Frame frame;
+    for (int i = 0; i < (input == folder ? 2 : 1); ++i) {
+      ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << input;
+      ASSERT_EQ(frame.gray.size(), expected.size()) << frame.source;
+      cv::Mat difference;
+      cv::absdiff(frame.gray, expected, difference);
+      EXPECT_LT(cv::mean(difference)[0], 2.0) << frame.source;
+      ASSERT_FALSE(frame.cr.empty());
+      EXPECT_EQ(frame.cr.size(), cv::Size(expected.cols / 2, expected.rows / 2)) << "JPEG's 4:2:0 Cr, turned too";
+    }
+  }
 }
 
 void expect_source_error_naming(const fs::path& path) {
