@@ -507,6 +507,28 @@ TEST(FaceTracker, LosesTheFaceOnABlankFrameAndReacquires) {
   EXPECT_EQ(tracker.track(frames[3], landmarks), TrackStatus::kTracking);
 }
 
+TEST(FaceTracker, AStillLooksForASmallFaceAtTwiceItsSize) {
+  const cv::Mat face = generated_face();
+  if (face.empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  FaceTracker tracker(test::shared_predictor());
+  Landmarks2D full, small_landmarks;
+  ASSERT_EQ(tracker.track(face, full), TrackStatus::kAcquired);
+  // The same picture with 24 pixels between the outer eye corners: under dlib's 80-pixel
+  // window at this size.
+  const double scale = 24.0 / interocular_distance(full);
+  cv::Mat small;
+  cv::resize(face, small, {}, scale, scale, cv::INTER_AREA);
+  ASSERT_TRUE(detect(small).empty()) << "the detector finds this face at its own size: no test";
+  tracker.reset(FaceTracker::Next::kVideo);
+  EXPECT_EQ(tracker.track(small, small_landmarks), TrackStatus::kNoFace) << "a camera's frame gets no closer look";
+  tracker.reset(FaceTracker::Next::kStill);
+  ASSERT_EQ(tracker.track(small, small_landmarks), TrackStatus::kAcquired) << "a still is looked at twice its size";
+  const Landmarks2D expected = full * scale;
+  EXPECT_LT((small_landmarks - expected).colwise().norm().mean(), 0.1 * interocular_distance(expected));
+  tracker.reset(FaceTracker::Next::kVideo);
+  EXPECT_EQ(tracker.track(small, small_landmarks), TrackStatus::kNoFace) << "until the next still";
+}
+
 TEST(FaceTracker, APoorFitDropsTheTrack) {
   LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();

@@ -269,7 +269,7 @@ PhotoResult process_photo(FrameProcessor& processor, const fs::path& image, bool
     *detected = *detected && local.minCoeff() >= margin && local.row(0).maxCoeff() <= gray.cols - 1 - margin &&
                 local.row(1).maxCoeff() <= gray.rows - 1 - margin;
   }
-  processor.forget();
+  processor.forget(FaceTracker::Next::kStill);
   const FrameMeasurement& m = processor.process(gray, cr);
   r.tracked = m.tracked;
   if (!m.tracked) return r;

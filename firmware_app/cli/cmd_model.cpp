@@ -212,7 +212,7 @@ FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
     if (status != GrabStatus::kFrame)
       throw CommandError(fmt::format("{}: frame {}: {}", name, n, video.last_error().value_or("not decoded")),
                          kExitDataError);
-    if (video.independent_frames()) processor->forget();
+    if (video.independent_frames()) processor->forget(FaceTracker::Next::kStill);
     identity = processor->identity();
     result = &processor->process(frame.gray, frame.cr);
   }

@@ -343,7 +343,7 @@ void run_process(const ProcessOptions& options) {
       continue;
     }
     times.decode.push_back(frame.decode_ms);
-    if (independent) processor->forget();
+    if (independent) processor->forget(FaceTracker::Next::kStill);
     const FrameMeasurement& result = processor->process(frame.gray, frame.cr);
     times.landmarks.push_back(result.landmarks_ms);
     if (!std::isnan(result.fit_ms)) times.fit.push_back(result.fit_ms);

@@ -57,10 +57,11 @@ class FrameProcessor {
   /// AutoIdentity is fitted, and the first of its frames, which fits the provisional one).
   const FrameMeasurement& process(const cv::Mat& gray, const cv::Mat& cr);
 
-  /// The next frame is unrelated to the last (independent images): detect afresh, and gather
-  /// an AutoIdentity's frames afresh (another image may be another face).
-  void forget() {
-    tracker_.reset();
+  /// The next frame is unrelated to the last (a still photograph, or the first frame of
+  /// another clip): detect afresh (FaceTracker::reset), and gather an AutoIdentity's frames
+  /// afresh (another image may be another face).
+  void forget(FaceTracker::Next next) {
+    tracker_.reset(next);
     identity_frames_.clear();
   }
 

@@ -55,7 +55,7 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
   if (camera->independent_frames())
     throw CommandError(fmt::format("{}: an image or a folder has no sound; a voice needs a clip", clip.string()),
                        kExitDataError);
-  processor.forget();
+  processor.forget(FaceTracker::Next::kVideo);
   Frame frame;
   for (GrabStatus status;
        (status = camera->grab(frame, std::chrono::milliseconds(1000))) != GrabStatus::kEndOfStream;) {
