@@ -87,7 +87,7 @@ class FaceTracker {
   /// twice it: its 80-pixel window then finds faces from about 20 pixels between the outer eye
   /// corners instead of about 40 (as dlib's own examples enlarge photographs once). It costs
   /// four times the detection, on stills without a face only; a camera's frames never pay it.
-  void reset(Next next = Next::kVideo) {
+  void reset(Next next) {
     tracking_ = false;
     still_ = next == Next::kStill;
   }
@@ -119,8 +119,8 @@ class FaceTracker {
   double appearance_ = 0;
   double face_luma_ = 0;    // this frame's upper-face luma
   double mouth_ratio_ = 0;  // lips over upper face at the start of the track; 0 = not yet seen
-  bool still_ = false;   // the frame after reset(Next::kStill) is a still photograph
-  cv::Mat enlarged_;     // a still at twice its size, for the detector
+  bool still_ = false;      // the frame after reset(Next::kStill) is a still photograph
+  cv::Mat enlarged_;        // a still at twice its size, for the detector
   FaceBox box_;             // where the next tracked frame looks: derived from the last landmarks
   bool tracking_ = false;
 };
