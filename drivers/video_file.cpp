@@ -24,7 +24,7 @@ DisplayOrientation orientation_of_matrix(const std::int32_t* matrix) {
   const double clockwise = -av_display_rotation_get(matrix);
   if (!std::isfinite(clockwise)) return {};
   const long quarters = std::lround(clockwise / 90.0);
-  return {.turn = static_cast<int>(((quarters % 4) + 4) % 4) * 90};
+  return {.turn = static_cast<Rotation>(((quarters % 4) + 4) % 4 * 90)};
 }
 
 /// An EXIF orientation tag (FFmpeg's JPEG and TIFF decoders put it in the picture's metadata
@@ -33,13 +33,13 @@ DisplayOrientation orientation_of_matrix(const std::int32_t* matrix) {
 /// (clockwise); anything else as stored.
 DisplayOrientation orientation_of_exif(const char* tag) {
   switch (std::strtol(tag, nullptr, 10)) {
-    case 2: return {.turn = 0, .mirrored = true};
-    case 3: return {.turn = 180};
-    case 4: return {.turn = 180, .mirrored = true};
-    case 5: return {.turn = 270, .mirrored = true};
-    case 6: return {.turn = 90};
-    case 7: return {.turn = 90, .mirrored = true};
-    case 8: return {.turn = 270};
+    case 2: return {.turn = Rotation::k0, .mirrored = true};
+    case 3: return {.turn = Rotation::k180};
+    case 4: return {.turn = Rotation::k180, .mirrored = true};
+    case 5: return {.turn = Rotation::k270, .mirrored = true};
+    case 6: return {.turn = Rotation::k90};
+    case 7: return {.turn = Rotation::k90, .mirrored = true};
+    case 8: return {.turn = Rotation::k270};
     default: return {};
   }
 }

@@ -8,6 +8,8 @@
 // records its frames on their side and says so) is read beside them, DisplayOrientation.
 #pragma once
 
+#include "core/image_rotation.hpp"
+
 #include <opencv2/core/mat.hpp>
 
 #include <cstdint>
@@ -24,11 +26,11 @@ struct MediaError : std::runtime_error {
 };
 
 /// How a file means its frames to be seen: mirrored left to right first, then turned
-/// clockwise by `turn` degrees (0, 90, 180 or 270). From a video stream's display matrix
+/// clockwise by `turn`. From a video stream's display matrix
 /// (its turn to the nearest quarter; a flip in the matrix is not applied) or an image's EXIF
 /// orientation (1-8, mirrored ones included).
 struct DisplayOrientation {
-  int turn = 0;
+  Rotation turn = Rotation::k0;
   bool mirrored = false;
   bool operator==(const DisplayOrientation&) const = default;
 };

@@ -245,14 +245,13 @@ void SimulatedCamera::show(DisplayOrientation orientation, Frame& frame) {
     cv::flip(gray_, gray_, 1);
     if (!cr_.empty()) cv::flip(cr_, cr_, 1);
   }
-  frame.gray = gray_;
-  frame.cr = cr_;
-  const std::optional<Rotation> turn = rotation_from_degrees(orientation.turn);
-  if (!turn || *turn == Rotation::k0) return;
-  rotate_plane(gray_, turned_gray_, *turn);
-  rotate_plane(cr_, turned_cr_, *turn);
-  frame.gray = turned_gray_;
-  frame.cr = turned_cr_;
+  const bool turned = orientation.turn != Rotation::k0;
+  if (turned) {
+    rotate_plane(gray_, turned_gray_, orientation.turn);
+    rotate_plane(cr_, turned_cr_, orientation.turn);
+  }
+  frame.gray = turned ? turned_gray_ : gray_;
+  frame.cr = turned ? turned_cr_ : cr_;
 }
 
 }  // namespace lipdrive

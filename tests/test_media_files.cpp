@@ -55,9 +55,9 @@ cv::Mat gray_of(const cv::Mat& bgr) {
 cv::Mat shown(const cv::Mat& plane, DisplayOrientation orientation) {
   cv::Mat out = plane.clone();
   if (orientation.mirrored) cv::flip(out, out, 1);
-  if (orientation.turn == 90) cv::rotate(out, out, cv::ROTATE_90_CLOCKWISE);
-  if (orientation.turn == 180) cv::rotate(out, out, cv::ROTATE_180);
-  if (orientation.turn == 270) cv::rotate(out, out, cv::ROTATE_90_COUNTERCLOCKWISE);
+  if (orientation.turn == Rotation::k90) cv::rotate(out, out, cv::ROTATE_90_CLOCKWISE);
+  if (orientation.turn == Rotation::k180) cv::rotate(out, out, cv::ROTATE_180);
+  if (orientation.turn == Rotation::k270) cv::rotate(out, out, cv::ROTATE_90_COUNTERCLOCKWISE);
   return out;
 }
 
@@ -220,8 +220,9 @@ TEST_F(MediaFilesTest, AnImagesExifOrientationIsReadBesideItsPlanes) {
   cv::Mat gray, cr;
   EXPECT_EQ(read_image(plain, gray, cr), DisplayOrientation{}) << "no tag: as stored";
   // EXIF 1-8: as stored, mirrored, 180, mirrored + 180, mirrored + 270, 90, mirrored + 90, 270.
-  const std::array<DisplayOrientation, 9> expected{{{}, {}, {0, true}, {180, false}, {180, true}, {270, true},
-                                                    {90, false}, {90, true}, {270, false}}};
+  using enum Rotation;
+  const std::array<DisplayOrientation, 9> expected{{{}, {}, {k0, true}, {k180, false}, {k180, true}, {k270, true},
+                                                    {k90, false}, {k90, true}, {k270, false}}};
   for (int tag = 1; tag <= 8; ++tag) {
     const fs::path file = dir_ / fmt::format("exif{}.jpg", tag);
     test::write_jpeg_with_orientation(file, card, tag);
@@ -253,7 +254,7 @@ TEST_F(MediaFilesTest, AVideosDisplayMatrixIsReadAsAClockwiseTurn) {
     VideoFile video(file);
     cv::Mat gray, cr;
     ASSERT_TRUE(video.read(gray, cr));
-    EXPECT_EQ(video.orientation().turn, (360 - tag) % 360) << "rotate=" << tag;
+    EXPECT_EQ(static_cast<int>(video.orientation().turn), (360 - tag) % 360) << "rotate=" << tag;
     EXPECT_FALSE(video.orientation().mirrored);
     const cv::Mat player = cv::imread(first.string(), cv::IMREAD_GRAYSCALE);
     const cv::Mat ours = shown(gray, video.orientation());
