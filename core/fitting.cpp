@@ -37,9 +37,11 @@ double camera_scale_squared(const Mat<3, 4>& camera) {
 }
 
 /// Expression weights by box-constrained least squares (docs/method.md 3, expression models):
-/// minimises ||A w + b||^2 / (s^2 sigma^2) + sum_e lambda_e w_e^2 over 0 <= w_e <= 1 (the
-/// residual over the camera scale s, so in mm on the face whatever the image size), i.e.
-/// 1/2 w^T H w - g^T w with H = A^T A / (s^2 sigma^2) + diag(lambda), g = -A^T b / (s^2 sigma^2).
+/// minimises 1/2 ||A w + b||^2 / (s^2 sigma^2) + 1/2 sum_e lambda_e w_e^2 + sum_e mu_e w_e over
+/// 0 <= w_e <= 1 (the residual over the camera scale s, so in mm on the face whatever the image
+/// size; mu the sparse prior, an L1 norm that is linear on w >= 0: Bouaziz, Wang & Pauly, "Online
+/// Modeling for Realtime Facial Animation", SIGGRAPH 2013), i.e. 1/2 w^T H w - g^T w with
+/// H = A^T A / (s^2 sigma^2) + diag(lambda), g = -A^T b / (s^2 sigma^2) - mu.
 /// Cyclic coordinate descent with each coordinate clamped to its bounds (Franc, Hlavac & Navara,
 /// "Sequential Coordinate-Wise Algorithm for the Non-negative Least Squares Problem", CAIP 2005,
 /// here with an upper bound too): each step sets w_e to the minimiser along e, so the cost never
@@ -67,6 +69,7 @@ struct LandmarkShape {
   Mat<3, kNumLandmarks> mean;           // mm, NaN where unmapped
   Mat<3 * kNumLandmarks, K> basis;      // rows x, y, z per landmark; zero where unmapped or beyond the model
   Mat<K, 1> ridge = Mat<K, 1>::Zero();  // lambda_e of solve_bounded (expression models)
+  Mat<K, 1> sparsity = Mat<K, 1>::Zero();  // mu_e of solve_bounded (expression models)
   std::array<int, K> partner;           // bound partner of solve_bounded, -1 = none
   int coefficients = 0;                 // columns in use
   bool expressions = false;             // bounded expression weights, else ridge-regularised alpha
@@ -132,9 +135,11 @@ LandmarkShape<K> expression_shape(const MorphableModel& model, const Eigen::Vect
     shape.partner[shape.jaw_open] = shape.mouth_close;
     shape.partner[shape.mouth_close] = shape.jaw_open;
   }
-  for (int e = 0; e < model.num_expressions(); ++e)
-    shape.ridge[e] =
-        settings.expression_prior * (e == shape.jaw_open || e == shape.mouth_close ? settings.jaw_prior_ratio : 1.0);
+  for (int e = 0; e < model.num_expressions(); ++e) {
+    const double jaw = e == shape.jaw_open || e == shape.mouth_close ? settings.jaw_prior_ratio : 1.0;
+    shape.ridge[e] = settings.expression_prior * jaw;
+    shape.sparsity[e] = settings.expression_sparsity * jaw;
+  }
   return shape;
 }
 
@@ -172,7 +177,7 @@ class FixedSizeFitter final : public FitterBase {
         Mat<K, K> H = omega * AtA;
         H.diagonal() += shape_.ridge;
         H.diagonal().array() += 1e-12;  // a shape that moves no landmark keeps a finite step
-        solve_bounded<K>(H, -omega * Atb, shape_.partner, settings_.sweeps, c);
+        solve_bounded<K>(H, -omega * Atb - shape_.sparsity, shape_.partner, settings_.sweeps, c);
       } else {
         c = solve_shape<K>(AtA, Atb, settings_.sigma_px, settings_.lambda);
       }
@@ -278,7 +283,7 @@ void check_fit_inputs(const MorphableModel& model, LandmarkSet set, const FitSet
   if (settings.sweeps < 1 || settings.identity_iterations < 1)
     throw std::invalid_argument("Fitter: sweeps and identity_iterations must be at least 1");
   if (!(settings.expression_sigma_mm > 0)) throw std::invalid_argument("Fitter: expression_sigma_mm must be positive");
-  if (!(settings.expression_prior >= 0) || !(settings.jaw_prior_ratio >= 0))
+  if (!(settings.expression_prior >= 0) || !(settings.jaw_prior_ratio >= 0) || !(settings.expression_sparsity >= 0))
     throw std::invalid_argument("Fitter: the expression priors must not be negative");
   if (model.num_components() < 1) throw std::invalid_argument("Fitter: the model has no shape components");
   if (model.basis.rows() != model.mean.size() || model.basis.cols() != model.num_components())

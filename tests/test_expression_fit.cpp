@@ -77,15 +77,15 @@ Landmarks2D noisy(Landmarks2D landmarks, double sigma_px, std::mt19937& rng) {
 
 /// Per mouth weight, the RMS error of random expressions on random identities, each held for
 /// 10 frames (the fit warm-started frame to frame, as on video) with 1 px landmark noise.
-std::vector<std::pair<std::string, double>> mouth_weight_errors(LandmarkSet set) {
+std::vector<std::pair<std::string, double>> mouth_weight_errors(LandmarkSet set, const FitSettings& settings = {}) {
   const MorphableModel& model = ict_model();
   std::mt19937 rng(18);
   const Eigen::Matrix<double, 3, 4> camera = rig_camera(model);
-  constexpr int kExpressions = 200, kHeldFrames = 10;
+  constexpr int kExpressions = 1200, kHeldFrames = 10;
   Eigen::ArrayXd squared_error = Eigen::ArrayXd::Zero(model.num_expressions());
   for (int sample = 0; sample < kExpressions; ++sample) {
     const Eigen::VectorXf identity = random_identity(model, rng);
-    const Fitter fitter(model, set, {}, identity);
+    const Fitter fitter(model, set, settings, identity);
     const FitOutput::Expressions truth = random_expression(model, rng);
     const Landmarks2D seen = testing::project(camera, ict_landmarks(model, identity, truth));
     FitOutput fit = Fitter::initial_output();
@@ -117,6 +117,10 @@ TEST(ExpressionFit, RecoversRandomMouthWeightsOnARandomIdentity) {
       ::testing::Test::RecordProperty(fmt::format("rms_{}_{}", landmark_set_name(set), name),
                                       fmt::format("{:.4f}", rms));
       if (name == "jawOpen") jaw_open[set == LandmarkSet::F5] = rms;
+      // The target (issue: each mouth weight within RMS 0.1), with the jaw line.
+      if (set == LandmarkSet::F5) {
+        EXPECT_LE(rms, 0.1) << name;
+      }
     }
     fmt::print("{}: mouth weights, RMS error (target <= 0.1 each):{}\n{}: {} within 0.1\n", landmark_set_name(set),
                figures, landmark_set_name(set), within);
@@ -127,6 +131,27 @@ TEST(ExpressionFit, RecoversRandomMouthWeightsOnARandomIdentity) {
   // 10 alternations, 0.095 with 3, where the camera's scale and pitch kept part of the jaw's
   // motion (docs/arkit.md, "The alternation must converge").
   EXPECT_LT(jaw_open[1], 0.05);
+}
+
+// The sparse prior is what brings the weights a landmark moves less than 1 px under 0.1: with the
+// ridge alone (the prior before it) the same expressions come back worse, the frowns, the lower
+// lip and the pressed lips worst (docs/arkit.md, "A sparse prior").
+TEST(ExpressionFit, TheSparsePriorRecoversMouthWeightsBetterThanTheRidgeAlone) {
+  FitSettings ridge_only;
+  ridge_only.expression_prior = 1.0;
+  ridge_only.expression_sparsity = 0.0;
+  const auto sparse = mouth_weight_errors(LandmarkSet::F5), ridge = mouth_weight_errors(LandmarkSet::F5, ridge_only);
+  double sparse_worst = 0, ridge_worst = 0, sparse_sum = 0, ridge_sum = 0;
+  for (std::size_t i = 0; i < sparse.size(); ++i) {
+    sparse_worst = std::max(sparse_worst, sparse[i].second);
+    ridge_worst = std::max(ridge_worst, ridge[i].second);
+    sparse_sum += sparse[i].second * sparse[i].second;
+    ridge_sum += ridge[i].second * ridge[i].second;
+  }
+  fmt::print("mouth weights, worst / RMS over the 27: sparse prior {:.3f} / {:.3f}, ridge alone {:.3f} / {:.3f}\n",
+             sparse_worst, std::sqrt(sparse_sum / sparse.size()), ridge_worst, std::sqrt(ridge_sum / ridge.size()));
+  EXPECT_LT(sparse_worst, ridge_worst);
+  EXPECT_LT(sparse_sum, ridge_sum);
 }
 
 // The daemon keeps the model on its landmark vertices (LoadedFiles): the identity, the rest

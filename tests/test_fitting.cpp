@@ -166,6 +166,8 @@ TEST(Fitter, RejectsBadSettings) {
   EXPECT_THROW(Fitter(model, LandmarkSet::F4, {.iterations = 0}), std::invalid_argument);
   EXPECT_THROW(Fitter(model, LandmarkSet::F4, {.lambda = 0.0}), std::invalid_argument);
   EXPECT_THROW(Fitter(model, LandmarkSet::F4, {.sigma_px = -1.0}), std::invalid_argument);
+  EXPECT_THROW(Fitter(model, LandmarkSet::F4, {.expression_prior = -1.0}), std::invalid_argument);
+  EXPECT_THROW(Fitter(model, LandmarkSet::F4, {.expression_sparsity = -0.5}), std::invalid_argument);
   EXPECT_THROW(Fitter(testing::truncated(model, 0), LandmarkSet::F4), std::invalid_argument);
 }
 

@@ -85,6 +85,7 @@ void add_expression_fit_command(CLI::App& app) {
   cmd->add_option("--iterations", args->settings.iterations)->capture_default_str();
   cmd->add_option("--expression-prior", args->settings.expression_prior)->capture_default_str();
   cmd->add_option("--jaw-prior-ratio", args->settings.jaw_prior_ratio)->capture_default_str();
+  cmd->add_option("--expression-sparsity", args->settings.expression_sparsity)->capture_default_str();
   cmd->add_option("--expression-sigma-mm", args->settings.expression_sigma_mm)->capture_default_str();
   cmd->callback([args] { run_expression_fit(*args); });
 }
