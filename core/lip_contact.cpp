@@ -182,7 +182,7 @@ LipGap measure_lip_gap(const cv::Mat& gray, const cv::Mat& cr, const Landmarks2D
     const Profile& profile = profiles[c];
     const Region region = inner_region(profile, s.margin * d / profile.px_per_sample);
     if (region.last < region.first) return result;
-    darkness[c] = std::max(0.0, deficit_px(profile, profile.luma, region, result.lip_luma) - s.line_darkness_px) / d;
+    darkness[c] = std::max(0.0, deficit_px(profile, profile.luma, region, result.lip_luma) / d - s.line_darkness);
     textures[c] = excess_variation(profile, region, result.lip_luma);
     if (result.colour)
       pallor[c] = std::max(0.0, deficit_px(profile, profile.red, region, result.lip_red) - s.line_pallor_px) / d;

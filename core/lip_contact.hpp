@@ -50,9 +50,11 @@ struct LipContactSettings {
   /// contours the lips are taken to meet (the landmarks' error), both over d.
   double extend = 0.15;
   double margin = 0.05;
-  /// The darkness of the line between sealed lips (pixels x relative darkness: its width is
-  /// the optics' blur), taken off the darkness integral.
-  double line_darkness_px = 1.2;
+  /// The darkness of the line between sealed lips (its width x relative darkness, over d),
+  /// taken off the darkness integral. The crease where the lips meet and their rounding into it
+  /// are the face's own, so the line's integral grows with the face's size in the image (blur
+  /// spreads it but keeps it): 1.2 px at GRID's d of 24.6 px.
+  double line_darkness = 0.049;
   /// The pixels say "apart" at darkness >= open_darkness (over d) or texture >= open_texture
   /// (over the lips' luma); seal_softness is the width of the transition, in units of those
   /// thresholds.

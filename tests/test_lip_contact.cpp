@@ -1,7 +1,8 @@
 // Lip contact (core/lip_contact.hpp) on drawn mouths whose answer is known: sealed lips with
 // the landmarks on them or lagging half open, a dark cavity, teeth hardly brighter than the
 // lips; in colour, grey teeth no brighter than the lips and sealed lips whose shading looks like
-// teeth in luma; at several resolutions and exposures; and the viseme transfer it feeds.
+// teeth in luma; a deep crease between sealed lips; at several resolutions and exposures; and
+// the viseme transfer it feeds.
 #include "allocation_counter.hpp"
 #include "core/lip_contact.hpp"
 #include "core/viseme_weights.hpp"
@@ -17,8 +18,9 @@ namespace {
 
 /// kGreyTeeth: teeth as bright as the lips and no line between them (luma shows nothing);
 /// kShadedSeal: sealed lips with a bright band on the upper lip just above the line, which in
-/// luma is the pattern of teeth (a blurred frame's lip shading).
-enum class Inside { kSealed, kCavity, kTeeth, kGreyTeeth, kShadedSeal };
+/// luma is the pattern of teeth (a blurred frame's lip shading); kDeepSeal: sealed lips meeting
+/// in a crease as dark and wide as GRID's (its darkness integral 0.04 d, against kSealed's 0.007).
+enum class Inside { kSealed, kCavity, kTeeth, kGreyTeeth, kShadedSeal, kDeepSeal };
 
 struct DrawnMouth {
   cv::Mat gray;
@@ -59,10 +61,13 @@ DrawnMouth draw_mouth(Inside inside, double opening, double landmark_opening, do
   cv::Mat cr(image.size(), CV_8UC1, cv::Scalar(140));
   cv::fillPoly(image, std::vector<std::vector<cv::Point>>{outer}, cv::Scalar(110), cv::LINE_AA, 4);
   cv::fillPoly(cr, std::vector<std::vector<cv::Point>>{outer}, cv::Scalar(158), cv::LINE_AA, 4);
-  if (inside == Inside::kSealed || inside == Inside::kShadedSeal) {
+  if (inside == Inside::kSealed || inside == Inside::kShadedSeal || inside == Inside::kDeepSeal) {
     if (inside == Inside::kShadedSeal)
       cv::line(image, pt(84, 177), pt(116, 177), cv::Scalar(150), 2 * line, cv::LINE_AA, 4);
-    cv::line(image, pt(80, 180), pt(120, 180), cv::Scalar(80), line, cv::LINE_AA, 4);
+    if (inside == Inside::kDeepSeal)
+      cv::line(image, pt(80, 180), pt(120, 180), cv::Scalar(65), 3 * line, cv::LINE_AA, 4);
+    else
+      cv::line(image, pt(80, 180), pt(120, 180), cv::Scalar(80), line, cv::LINE_AA, 4);
     cv::line(cr, pt(80, 180), pt(120, 180), cv::Scalar(152), line, cv::LINE_AA, 4);  // the shadow's colour
   } else {
     const double luma = inside == Inside::kCavity ? 40 : inside == Inside::kTeeth ? 128 : 110;
@@ -159,12 +164,20 @@ TEST(LipContact, LipsWithoutColourFallBackToTheLuma) {
   EXPECT_EQ(seal_probability(gap, 0.2), seal_probability(measure_lip_gap(m.gray, cv::Mat(), m.landmarks), 0.2));
 }
 
+// The darkness is over d, and so is the line's own (the crease where the lips meet is the face's):
+// a sealed mouth magnified four times reads sealed, as a head-mounted camera's large face or a
+// video upscaled to HD must (with the line's allowance in pixels, the deep crease at four times
+// the size read apart).
 TEST(LipContact, TheSameMouthReadsTheSameAtAnyResolutionAndExposure) {
-  for (const Inside inside : {Inside::kSealed, Inside::kCavity, Inside::kTeeth}) {
-    const double opening = inside == Inside::kSealed ? 0.0 : 0.25;
+  for (const Inside inside : {Inside::kSealed, Inside::kDeepSeal, Inside::kCavity, Inside::kTeeth}) {
+    const bool sealed = inside == Inside::kSealed || inside == Inside::kDeepSeal;
+    const double opening = sealed ? 0.0 : 0.25;
     const DrawnMouth reference = draw_mouth(inside, opening, opening + 0.1);
     const LipGap expected = measure_lip_gap(reference.gray, cv::Mat(), reference.landmarks);
     const double expected_seal = seal_probability(expected, opening + 0.1);
+    if (sealed) {
+      EXPECT_GT(expected_seal, 0.9);
+    }
     for (const double scale : {2.0, 4.0})
       for (const double gain : {0.6, 1.0, 1.4}) {
         SCOPED_TRACE(::testing::Message()
@@ -174,6 +187,9 @@ TEST(LipContact, TheSameMouthReadsTheSameAtAnyResolutionAndExposure) {
         ASSERT_TRUE(gap.valid);
         EXPECT_NEAR(gap.darkness, expected.darkness, 0.04);
         EXPECT_NEAR(seal_probability(gap, opening + 0.1), expected_seal, 0.1);
+        if (sealed) {
+          EXPECT_GT(seal_probability(gap, opening + 0.1), 0.9);
+        }
       }
   }
   for (const Inside inside : {Inside::kSealed, Inside::kGreyTeeth, Inside::kShadedSeal}) {
