@@ -66,14 +66,14 @@ void solve_bounded(const Mat<K, K>& H, const Mat<K, 1>& g, const std::array<int,
 /// coefficients (alpha for a pose-PCA model, the expression weights for an expression model).
 template <int K>
 struct LandmarkShape {
-  Mat<3, kNumLandmarks> mean;           // mm, NaN where unmapped
-  Mat<3 * kNumLandmarks, K> basis;      // rows x, y, z per landmark; zero where unmapped or beyond the model
-  Mat<K, 1> ridge = Mat<K, 1>::Zero();  // lambda_e of solve_bounded (expression models)
+  Mat<3, kNumLandmarks> mean;              // mm, NaN where unmapped
+  Mat<3 * kNumLandmarks, K> basis;         // rows x, y, z per landmark; zero where unmapped or beyond the model
+  Mat<K, 1> ridge = Mat<K, 1>::Zero();     // lambda_e of solve_bounded (expression models)
   Mat<K, 1> sparsity = Mat<K, 1>::Zero();  // mu_e of solve_bounded (expression models)
-  std::array<int, K> partner;           // bound partner of solve_bounded, -1 = none
-  int coefficients = 0;                 // columns in use
-  bool expressions = false;             // bounded expression weights, else ridge-regularised alpha
-  int jaw_open = -1, mouth_close = -1;  // expression models: the pair fitted as (u, v) (ExpressionBasis)
+  std::array<int, K> partner;              // bound partner of solve_bounded, -1 = none
+  int coefficients = 0;                    // columns in use
+  bool expressions = false;                // bounded expression weights, else ridge-regularised alpha
+  int jaw_open = -1, mouth_close = -1;     // expression models: the pair fitted as (u, v) (ExpressionBasis)
 };
 
 /// V̂ rows of one vertex (3 x K, zero beyond the model's components): basis scaled by stddev.

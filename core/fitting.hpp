@@ -28,12 +28,12 @@ struct FitSettings {
   double lambda = 1.0;    // shape regulariser; 1 = MAP estimate under the prior alpha ~ N(0, I)
   double sigma_px = 1.0;  // landmark noise standard deviation in pixels
   // Expression models (docs/method.md 3):
-  int sweeps = 4;                    // coordinate-descent sweeps per pose <-> shape iteration (>= 1)
-  int identity_iterations = 10;      // fit_identity: camera <-> identity alternations (>= 1)
-  double expression_sigma_mm = 1.0;  // landmark noise on the face, in mm (the residual over the camera scale)
-  double expression_prior = 0.0;     // lambda_e: a Gaussian prior, cost 1/2 lambda_e w^2, in units of sigma^2
-  double expression_sparsity = 0.75; // mu_e: a sparse (L1) prior, cost mu_e w (docs/arkit.md "A sparse prior")
-  double jaw_prior_ratio = 1.0;      // lambda_e and mu_e of jawOpen and mouthClose relative to the others
+  int sweeps = 4;                     // coordinate-descent sweeps per pose <-> shape iteration (>= 1)
+  int identity_iterations = 10;       // fit_identity: camera <-> identity alternations (>= 1)
+  double expression_sigma_mm = 1.0;   // landmark noise on the face, in mm (the residual over the camera scale)
+  double expression_prior = 0.0;      // lambda_e: a Gaussian prior, cost 1/2 lambda_e w^2, in units of sigma^2
+  double expression_sparsity = 0.75;  // mu_e: a sparse (L1) prior, cost mu_e w (docs/arkit.md "A sparse prior")
+  double jaw_prior_ratio = 1.0;       // lambda_e and mu_e of jawOpen and mouthClose relative to the others
 };
 
 /// Expression shapes a 68-point landmark fit cannot observe (eye gaze, a puffed cheek, the
