@@ -2,6 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <cmath>
 #include <vector>
 
 namespace lipdrive {
@@ -38,19 +39,25 @@ FaceTracker::FaceTracker(std::shared_ptr<const ShapePredictorData> predictor, Tr
     : settings_(settings), predictor_(predictor), detector_(predictor->detector()) {}
 
 bool FaceTracker::acquire(const cv::Mat& gray, Landmarks2D& landmarks) {
+  if (!still_ && settings_.min_face_px > kDetectorWindowPx) {
+    const double reduction = kDetectorWindowPx / settings_.min_face_px;
+    cv::resize(gray, resized_, {}, reduction, reduction, cv::INTER_AREA);
+    return acquire_among(detector_.detect(resized_), reduction, gray, landmarks);
+  }
   if (acquire_among(detector_.detect(gray), 1, gray, landmarks)) return true;
   if (!still_) return false;
-  cv::resize(gray, enlarged_, {}, 2, 2, cv::INTER_LINEAR);
-  return acquire_among(detector_.detect(enlarged_), 2, gray, landmarks);
+  cv::resize(gray, resized_, {}, 2, 2, cv::INTER_LINEAR);
+  return acquire_among(detector_.detect(resized_), 2, gray, landmarks);
 }
 
-bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, long scale, const cv::Mat& gray,
+bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale, const cv::Mat& gray,
                                 Landmarks2D& landmarks) {
   // One performer per camera: the largest face is theirs, unless its landmarks fail the
   // checks (a face cut by the image border); then the next largest. The boxes of an image
   // `scale` times the size of `gray` are scaled back to it.
   for (const FaceBox& face : faces) {
-    box_ = {face.left / scale, face.top / scale, face.right / scale, face.bottom / scale};
+    box_ = {std::lround(face.left / scale), std::lround(face.top / scale), std::lround(face.right / scale),
+            std::lround(face.bottom / scale)};
     predictor_.predict_median(gray, box_, landmarks);  // a detector's box is only roughly placed
     if (accept(gray, landmarks, true)) return true;
   }

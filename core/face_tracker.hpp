@@ -34,6 +34,9 @@
 
 namespace lipdrive {
 
+/// The width of dlib's HOG detector window: the smallest face it finds at an image's own size.
+inline constexpr double kDetectorWindowPx = 80;
+
 struct TrackerSettings {
   /// Fit RMS reprojection error over inter-ocular distance above which the landmarks are
   /// taken not to be a face.
@@ -51,6 +54,12 @@ struct TrackerSettings {
   /// (either way): anything else is a hand or an object over the mouth.
   double min_mouth_luma = 0.4, max_mouth_luma = 2.0;
   double max_mouth_luma_change = 1.5;
+  /// The narrowest face box, in pixels, a camera's frames are searched for. dlib's detector
+  /// slides an 80-pixel window (kDetectorWindowPx) and finds faces from about that size up; a
+  /// camera whose face is always larger (a head-mounted rig's fills the picture) lets it search
+  /// the frame reduced by kDetectorWindowPx / min_face_px, at that factor squared of the cost.
+  /// Stills are searched at their own size (and twice it) whatever this says.
+  double min_face_px = kDetectorWindowPx;
 };
 
 enum class TrackStatus {
@@ -109,7 +118,7 @@ class FaceTracker {
 
  private:
   bool acquire(const cv::Mat& gray, Landmarks2D& landmarks);
-  bool acquire_among(const std::vector<FaceBox>& faces, long scale, const cv::Mat& gray, Landmarks2D& landmarks);
+  bool acquire_among(const std::vector<FaceBox>& faces, double scale, const cv::Mat& gray, Landmarks2D& landmarks);
   bool accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring);
 
   TrackerSettings settings_;
@@ -120,7 +129,7 @@ class FaceTracker {
   double face_luma_ = 0;    // this frame's upper-face luma
   double mouth_ratio_ = 0;  // lips over upper face at the start of the track; 0 = not yet seen
   bool still_ = false;      // the frame after reset(Next::kStill) is a still photograph
-  cv::Mat enlarged_;        // a still at twice its size, for the detector
+  cv::Mat resized_;         // the frame the detector searches when not at its own size
   FaceBox box_;             // where the next tracked frame looks: derived from the last landmarks
   bool tracking_ = false;
 };

@@ -63,8 +63,9 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
   write("type = \"sim\"\nreal_time = false\nfps = 30\nrotation = 270\n[camera.controls]\nexposure_us = 4000\n"
         "power_line_hz = 50\nkeep_frame_rate = false\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
         "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
-        "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0");
+        "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0\n[tracker]\nmin_face_px = 240");
   const Config config = load_config(file_);
+  EXPECT_EQ(config.tracker.min_face_px, 240);
   EXPECT_EQ(config.model.file, kModel);
   EXPECT_EQ(config.model.landmark_set, LandmarkSet::F5) << "the ICT head's, with the jaw line";
   EXPECT_EQ(config.model.auto_identity_frames, 20);
@@ -132,6 +133,8 @@ TEST_F(ConfigTest, OutOfRangeValuesNameTheRange) {
   EXPECT_THAT(error(), HasSubstr("key scheduling.cpu_latency_us: must be between -1 and 10000, got 20000"));
   write("", "[scheduling]\nwarm_ahead_us = -5");
   EXPECT_THAT(error(), HasSubstr("key scheduling.warm_ahead_us: must be between 0 and 100000, got -5"));
+  write("", "[tracker]\nmin_face_px = 40");
+  EXPECT_THAT(error(), HasSubstr("key tracker.min_face_px: must be between 80 and 4096, got 40"));
   write_text(fmt::format("[model]\nfile = \"{}\"\nauto_identity_frames = -1\n", kModel.string()));
   EXPECT_THAT(error(), HasSubstr("key model.auto_identity_frames: must be between 0 and 3600, got -1"));
 }

@@ -529,6 +529,33 @@ TEST(FaceTracker, AStillLooksForASmallFaceAtTwiceItsSize) {
   EXPECT_EQ(tracker.track(small, small_landmarks), TrackStatus::kNoFace) << "until the next still";
 }
 
+// A head-mounted camera's face fills the picture: with [tracker] min_face_px the detector
+// searches a camera's frame reduced so that such a face just fills its 80-pixel window (a
+// quarter of the cost at half the size), and finds what it found at full size; a face narrower
+// than that is not searched for; a still is searched at its own size whatever the setting.
+TEST(FaceTracker, ACameraWhoseFaceIsLargeIsSearchedInAReducedFrame) {
+  const cv::Mat face = generated_face();
+  if (face.empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  cv::Mat large;
+  cv::resize(face, large, {}, 2, 2, cv::INTER_LINEAR);
+  const std::vector<dlib::rectangle> boxes = detect(large);
+  ASSERT_FALSE(boxes.empty());
+  const double width = static_cast<double>(boxes.front().width());
+  FaceTracker everywhere(test::shared_predictor());
+  FaceTracker reduced(test::shared_predictor(), {.min_face_px = 0.8 * width});
+  Landmarks2D expected, landmarks;
+  ASSERT_EQ(everywhere.track(large, expected), TrackStatus::kAcquired);
+  ASSERT_EQ(reduced.track(large, landmarks), TrackStatus::kAcquired) << "the face is wider than min_face_px";
+  EXPECT_LT((landmarks - expected).colwise().norm().mean(), 0.02 * interocular_distance(expected));
+  // The picture at its own size: the face half as wide, under min_face_px, over the window.
+  everywhere.reset(FaceTracker::Next::kVideo);
+  reduced.reset(FaceTracker::Next::kVideo);
+  EXPECT_EQ(everywhere.track(face, landmarks), TrackStatus::kAcquired);
+  EXPECT_EQ(reduced.track(face, landmarks), TrackStatus::kNoFace) << "narrower than min_face_px: not searched for";
+  reduced.reset(FaceTracker::Next::kStill);
+  EXPECT_EQ(reduced.track(face, landmarks), TrackStatus::kAcquired) << "a still is searched at its own size";
+}
+
 TEST(FaceTracker, APoorFitDropsTheTrack) {
   LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();

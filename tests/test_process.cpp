@@ -127,6 +127,7 @@ std::string file_text(const fs::path& file) {
 
 // `process --config` builds the tracker and the fit from the daemon's file, through the
 // daemon's factory: the file's settings change the output exactly as they change the rig's.
+// (process_with writes its text after a [model] header; a [tracker] table may follow it.)
 TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   const fs::path video = kFixtureDir / "talking_face.avi";
   LIPDRIVE_REQUIRE_BUILT(video);
@@ -147,6 +148,13 @@ TEST_F(ProcessTest, TheDaemonsConfigurationSetsTheFit) {
   EXPECT_NE(process_with("one_iteration", "iterations = 1\n"), defaults) << "[model] iterations reaches the fit";
   EXPECT_NE(process_with("no_jaw_line", "landmark_set = \"F4\"\n"), defaults) << "[model] landmark_set too";
   EXPECT_NE(process_with("mean_face", "auto_identity_frames = 0\n"), defaults) << "and auto_identity_frames";
+  EXPECT_EQ(process_with("face_at_least_80px", "[tracker]\nmin_face_px = 80\n"), defaults);
+  const fs::path wide = dir_ / "wide_faces_only.toml";
+  std::ofstream(wide) << "[tracker]\nmin_face_px = 4096\n";
+  const ProcessRun none = run_process(video.string() + " --config " + wide.string(), dir_);
+  EXPECT_NE(none.stderr_text.find("no face"), std::string::npos)
+      << "[tracker] min_face_px reaches the tracker: no face that wide in the clip\n"
+      << none.stderr_text;
 
   const fs::path bad = dir_ / "bad.toml";
   std::ofstream(bad) << "[model]\niterations = 0\n";

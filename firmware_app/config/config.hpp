@@ -7,6 +7,7 @@
 
 #include "core/dmx_footprint.hpp"
 #include "core/drive_channels.hpp"
+#include "core/face_tracker.hpp"
 #include "core/fitting.hpp"
 #include "core/image_rotation.hpp"
 #include "core/landmarks.hpp"
@@ -118,6 +119,8 @@ struct Config {
 
   struct Tracker {
     std::filesystem::path predictor = default_predictor_path();
+    /// TrackerSettings::min_face_px: the narrowest face box a camera's frames are searched for.
+    int min_face_px = static_cast<int>(kDetectorWindowPx);
   } tracker;
 
   struct Camera {

@@ -164,7 +164,8 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   }
   try {
     return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit, files.predictor(config.tracker.predictor),
-                                            identity, rest, automatic);
+                                            identity, rest, automatic,
+                                            TrackerSettings{.min_face_px = static_cast<double>(config.tracker.min_face_px)});
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }

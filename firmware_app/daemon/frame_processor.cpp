@@ -11,7 +11,8 @@ namespace lipdrive {
 
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                                std::shared_ptr<const ShapePredictorData> predictor, const Eigen::VectorXf& identity,
-                               const FitOutput::Expressions& rest, AutoIdentity automatic)
+                               const FitOutput::Expressions& rest, AutoIdentity automatic,
+                               TrackerSettings tracking)
     : set_(set),
       settings_(settings),
       automatic_(identity.size() == 0 && model.has_expressions() && automatic.model ? std::move(automatic)
@@ -21,7 +22,7 @@ FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, Fit
       arkit_(model.expression_names),
       reference_(mouth_reference(model, identity, std::span<const double>(rest.data(), rest.size()))),
       visemes_(make_viseme_solver(model, set)),
-      tracker_(std::move(predictor)),
+      tracker_(std::move(predictor), tracking),
       rest_(rest) {
   identity_frames_.reserve(static_cast<std::size_t>(automatic_.frames));
 }

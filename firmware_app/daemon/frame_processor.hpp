@@ -46,10 +46,12 @@ class FrameProcessor {
   /// the mean face), `rest` its rest point (PerformerIdentity::rest_weights; zero = none): the
   /// ARKit weights and the visemes made from them are the fit's weights above_rest().
   /// `automatic`: with an empty identity and a model with expression shapes, fit one (AutoIdentity).
+  /// `tracking`: the face tracker's (`[tracker] min_face_px`).
   FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                  std::shared_ptr<const ShapePredictorData> predictor,
                  const Eigen::VectorXf& identity = Eigen::VectorXf(),
-                 const FitOutput::Expressions& rest = FitOutput::Expressions::Zero(), AutoIdentity automatic = {});
+                 const FitOutput::Expressions& rest = FitOutput::Expressions::Zero(), AutoIdentity automatic = {},
+                 TrackerSettings tracking = {});
 
   /// Measures one frame: its luma (CV_8UC1) and, from a colour camera, its Cr plane (CV_8UC1,
   /// empty otherwise: the lip contact then reads the luma alone). Allocation-free while the face stays tracked
