@@ -60,10 +60,11 @@ class ConfigTest : public ::testing::Test {
 };
 
 TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
-  write("type = \"sim\"\nreal_time = false\nfps = 30\nrotation = 270\n[camera.controls]\nexposure_us = 4000\n"
-        "power_line_hz = 50\nkeep_frame_rate = false\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
-        "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
-        "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0\n[tracker]\nmin_face_px = 240");
+  write(
+      "type = \"sim\"\nreal_time = false\nfps = 30\nrotation = 270\n[camera.controls]\nexposure_us = 4000\n"
+      "power_line_hz = 50\nkeep_frame_rate = false\n[camera.faults]\ndrop_every = 7\nstall_ms = 20",
+      "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
+      "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0\n[tracker]\nmin_face_px = 240");
   const Config config = load_config(file_);
   EXPECT_EQ(config.tracker.min_face_px, 240);
   EXPECT_EQ(config.model.file, kModel);

@@ -11,8 +11,7 @@ namespace lipdrive {
 
 FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, FitSettings settings,
                                std::shared_ptr<const ShapePredictorData> predictor, const Eigen::VectorXf& identity,
-                               const FitOutput::Expressions& rest, AutoIdentity automatic,
-                               TrackerSettings tracking)
+                               const FitOutput::Expressions& rest, AutoIdentity automatic, TrackerSettings tracking)
     : set_(set),
       settings_(settings),
       automatic_(identity.size() == 0 && model.has_expressions() && automatic.model ? std::move(automatic)
