@@ -66,7 +66,7 @@ TEST_F(ConfigTest, ValidFileLoadsWithItsValues) {
       "[log]\nlevel = \"debug\"\n[recording]\nflush_interval_ms = 250\n[status]\nprint_interval_ms = 0\n"
       "[scheduling]\nrealtime_priority = 20\ncpu_latency_us = 0\nwarm_ahead_us = 0\n[tracker]\nmin_face_px = 240");
   const Config config = load_config(file_);
-  EXPECT_EQ(config.tracker.min_face_px, 240);
+  EXPECT_EQ(config.tracker.settings.min_face_px, 240);
   EXPECT_EQ(config.model.file, kModel);
   EXPECT_EQ(config.model.landmark_set, LandmarkSet::F5) << "the ICT head's, with the jaw line";
   EXPECT_EQ(config.model.auto_identity_frames, 20);

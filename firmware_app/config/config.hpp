@@ -119,8 +119,8 @@ struct Config {
 
   struct Tracker {
     std::filesystem::path predictor = default_predictor_path();
-    /// TrackerSettings::min_face_px: the narrowest face box a camera's frames are searched for.
-    int min_face_px = static_cast<int>(kDetectorWindowPx);
+    /// The face tracker's: `min_face_px` from the file, the rest as TrackerSettings sets them.
+    TrackerSettings settings;
   } tracker;
 
   struct Camera {

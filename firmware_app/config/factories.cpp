@@ -163,9 +163,8 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
           automatic.frames > 0 ? "an identity of its own ([model] auto_identity_frames)" : "the mean face");
   }
   try {
-    return std::make_unique<FrameProcessor>(
-        *loaded, model.landmark_set, fit, files.predictor(config.tracker.predictor), identity, rest, automatic,
-        TrackerSettings{.min_face_px = static_cast<double>(config.tracker.min_face_px)});
+    return std::make_unique<FrameProcessor>(*loaded, model.landmark_set, fit, files.predictor(config.tracker.predictor),
+                                            identity, rest, automatic, config.tracker.settings);
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }
