@@ -1,7 +1,7 @@
 // The fit of a model with expression shapes (core/fitting.hpp) on the ICT head: expression
 // weights from synthetic frames of a random identity, the identity from noisy neutral frames,
-// the bounds, no allocation per frame, and the fit's weights under Apple's ARKit names. Figures are printed and
-// recorded as properties.
+// the bounds, no allocation per frame, the fit's weights under Apple's ARKit names, and the
+// identity the daemon's processor fits of its own. Figures are printed and recorded as properties.
 #include "allocation_counter.hpp"
 #include "build_paths.hpp"
 #include "core/arkit.hpp"
@@ -11,14 +11,21 @@
 #include "core/mouth_measures.hpp"
 #include "core/statistics.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "firmware_app/daemon/frame_processor.hpp"
+#include "fixture_paths.hpp"
 #include "reference_fitter.hpp"
+#include "shared_predictor.hpp"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <random>
 #include <string>
 #include <utility>
@@ -301,6 +308,41 @@ TEST(ExpressionFit, RestPointFromNeutralFramesReadsZeroAtRest) {
   EXPECT_GT(worst_raw, 0.2) << "the bias reads as expression weights";
   EXPECT_LT(worst_relative, 0.1) << "above the rest point the face at rest reads 0";
   EXPECT_NEAR(smiling, 0.6, 0.15);
+}
+
+// The daemon, live, cannot look ahead: without a calibrated identity its processor fits the
+// first tracked frame's identity at once (the provisional one, which carries the fit), holds
+// every ARKit weight at 0 while it gathers [model] auto_identity_frames tracked frames, then fits
+// the identity of them all and lets the weights go. (`lipdrive process` has the whole take and
+// fits that identity before its first row: test_process.cpp.)
+TEST(ExpressionFit, LiveTheArkitWeightsWaitForTheIdentityOfTheFirstFrames) {
+  if (!std::filesystem::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  const auto ict = std::make_shared<const MorphableModel>(
+      load_model_file(std::filesystem::path(test::kModelDir) / "ict_face_light.lpm"));
+  constexpr int kIdentityFrames = 20;
+  FrameProcessor processor(*ict, LandmarkSet::F5, FitSettings{}, test::shared_predictor(), Eigen::VectorXf(),
+                           FitOutput::Expressions::Zero(), AutoIdentity{.model = ict, .frames = kIdentityFrames});
+  ASSERT_TRUE(processor.identity_pending());
+  EXPECT_EQ(processor.identity().size(), 0) << "the mean face before any frame";
+  cv::VideoCapture capture(test::kClip.string());
+  cv::Mat bgr, gray;
+  int tracked = 0;
+  float most_while_gathering = 0, most_after = 0;
+  while (capture.read(bgr)) {
+    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+    const bool gathering = processor.identity_pending();
+    ASSERT_TRUE(processor.process(gray, cv::Mat()).tracked) << "frame " << tracked;
+    ++tracked;
+    DriveSignals signals;
+    processor.set_arkit(signals);
+    float& most = gathering ? most_while_gathering : most_after;
+    for (const float w : signals.arkit()) most = std::max(most, w);
+    EXPECT_EQ(processor.identity_pending(), tracked < kIdentityFrames) << "after tracked frame " << tracked;
+    if (tracked == 1) EXPECT_EQ(processor.identity().size(), ict->num_components()) << "the provisional identity";
+  }
+  ASSERT_GT(tracked, 2 * kIdentityFrames);
+  EXPECT_EQ(most_while_gathering, 0);
+  EXPECT_GT(most_after, 0.3) << "the weights move once the identity is fitted";
 }
 
 TEST(ExpressionFit, AboveRestMapsTheRestTo0AndAFullShapeTo1) {

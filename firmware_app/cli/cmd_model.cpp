@@ -200,6 +200,7 @@ FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
   Config config;
   config.model.file = args.model;
   const std::unique_ptr<FrameProcessor> processor = make_processor(config, load_performer(config));
+  fit_take_identity(args.video, Rotation::k0, *processor);
   SimulatedCamera video = open_recording(args.video);
   const std::string name = args.video.string();
   Frame frame;

@@ -291,6 +291,8 @@ void run_process(const ProcessOptions& options) {
   // ARKit weights of a model without expression shapes come from.
   const PerformerProfile profile = load_performer(config);
   const std::unique_ptr<FrameProcessor> processor = make_processor(config, profile);
+  const Rotation rotation = rotation_of(options.rotate, config.camera.rotation);
+  fit_take_identity(options.input, rotation, *processor);
 
   std::ofstream file;
   if (!options.out.empty()) {
@@ -321,8 +323,7 @@ void run_process(const ProcessOptions& options) {
 
   const std::int64_t start = monotonic_ns();
   FrameRing ring(4);
-  std::thread decoder(decode_all, std::ref(camera), rotation_of(options.rotate, config.camera.rotation),
-                      std::ref(ring));
+  std::thread decoder(decode_all, std::ref(camera), rotation, std::ref(ring));
   // Stops and joins the decoder however this scope is left.
   const auto stop_decoder = [&](std::thread* t) {
     ring.close();

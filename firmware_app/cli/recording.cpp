@@ -1,9 +1,13 @@
 #include "firmware_app/cli/recording.hpp"
 
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/daemon/frame_processor.hpp"
+#include "firmware_app/daemon/rotated_camera.hpp"
 
 #include <fmt/format.h>
 
+#include <chrono>
+#include <memory>
 #include <unistd.h>
 
 namespace lipdrive {
@@ -21,6 +25,28 @@ SimulatedCamera open_recording(const std::filesystem::path& input) {
   } catch (const SourceError& e) {
     throw CommandError(e.what(), kExitDataError);
   }
+}
+
+void fit_take_identity(const std::filesystem::path& input, Rotation rotation, FrameProcessor& processor) {
+  std::error_code ec;
+  // A pipe cannot be read twice: its take is measured as live.
+  if (!processor.identity_pending() || !std::filesystem::is_regular_file(input, ec)) return;
+  auto recording = std::make_unique<SimulatedCamera>(open_recording(input));
+  if (recording->independent_frames()) return;
+  const std::unique_ptr<FrameSource> camera = upright(std::move(recording), rotation);
+  Frame frame;
+  try {
+    while (processor.identity_pending()) {
+      const GrabStatus status = camera->grab(frame, std::chrono::milliseconds(1000));
+      if (status == GrabStatus::kFrame)
+        processor.process(frame.gray, frame.cr);
+      else if (status != GrabStatus::kCorrupt && status != GrabStatus::kTimeout)
+        break;  // the end of the take
+    }
+  } catch (const std::exception&) {
+    // Measured as live: the measuring pass decodes the same frames and says what failed.
+  }
+  processor.forget(FaceTracker::Next::kVideo);
 }
 
 }  // namespace lipdrive

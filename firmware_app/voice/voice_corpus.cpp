@@ -2,6 +2,7 @@
 
 #include "drivers/audio_file.hpp"
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/cli/recording.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "firmware_app/tables/grid_align.hpp"
 #include "sim/simulated_camera.hpp"
@@ -55,6 +56,7 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
   if (camera->independent_frames())
     throw CommandError(fmt::format("{}: an image or a folder has no sound; a voice needs a clip", clip.string()),
                        kExitDataError);
+  fit_take_identity(clip, Rotation::k0, processor);  // the first clip's, kept for the others (one performer)
   processor.forget(FaceTracker::Next::kVideo);
   Frame frame;
   for (GrabStatus status;
