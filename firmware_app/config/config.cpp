@@ -184,8 +184,8 @@ void read_tracker(Section tracker, Config& config) {
   const std::string file = tracker.string("predictor", "");
   if (!file.empty()) config.tracker.predictor = file;
   existing(tracker, "predictor", config.tracker.predictor, "predictor file");
-  config.tracker.settings.min_face_px = tracker.integer(
-      "min_face_px", static_cast<int>(config.tracker.settings.min_face_px), static_cast<int>(kDetectorWindowPx), 4096);
+  config.tracker.settings.min_face_px =
+      tracker.number("min_face_px", config.tracker.settings.min_face_px, kDetectorWindowPx, 4096);
   tracker.reject_unknown_keys();
 }
 
