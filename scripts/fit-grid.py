@@ -14,6 +14,8 @@ each against
     half), per clip, then the median over the half's clips;
 as min-max scaled RMSE and Pearson r (`lipdrive eval`'s definitions), and the closure metric of
 height_fit on the GRID clips (`lipdrive eval --align`: bilabial words whose closure it shows).
+Each agreement also from frame 20 on, once the ICT head's own identity is fitted (before it the
+fit runs on the provisional identity of the first frame: docs/arkit.md).
 
 usage: scripts/fit-grid.py [--build DIR] [--shared DIR]
 """
@@ -37,6 +39,7 @@ work = pathlib.Path(tempfile.mkdtemp(prefix="fit-grid-"))
 mean_face = work / "mean_face.toml"
 mean_face.write_text(f'[model]\nfile = "{args.build / "models/ict_face_light.lpm"}"\nlandmark_set = "F5"\n'
                      "auto_identity_frames = 0\n")
+IDENTITY_FRAMES = 20  # [model] auto_identity_frames, the default
 HEADS = {"ict": [], "mean-face": ["--config", str(mean_face)],
          "generated": ["--model", str(args.build / "models/default.lpm"), "--landmark-set", "F4"]}
 
@@ -56,6 +59,11 @@ def agreement(truth, output):
     return rmse, statistics.correlation(t, o)
 
 
+def after_identity(rows):
+    """The rows from frame IDENTITY_FRAMES on: the ICT head's own identity is fitted by then."""
+    return [r for r in rows if int(r["frame"]) >= IDENTITY_FRAMES]
+
+
 def process(clip, head):
     out = work / f"{clip.stem}_{head}.csv"
     subprocess.run([lipdrive, "process", clip, "--out", out, *HEADS[head]], check=True,
@@ -66,9 +74,11 @@ def process(clip, head):
 truth = list(csv.DictReader(open(args.build / "fixtures/talking_face_truth.csv")))
 for head in HEADS:
     rows = list(csv.DictReader(open(process(args.build / "fixtures/talking_face.avi", head))))
-    figures = [f"{m}_fit {a[0]:.3f} / {a[1]:.3f}" for m in ("width", "height")
-               for a in [agreement(column(truth, f"{m}_2d"), column(rows, f"{m}_fit"))]]
-    print(f"talking face, {head}: scaled RMSE / r against the truth: {', '.join(figures)}")
+    for frames, label in ((rows, ""), (after_identity(rows), f" from frame {IDENTITY_FRAMES}")):
+        truth_rows = [truth[int(r["frame"])] for r in frames]
+        figures = [f"{m}_fit {a[0]:.3f} / {a[1]:.3f}" for m in ("width", "height")
+                   for a in [agreement(column(truth_rows, f"{m}_2d"), column(frames, f"{m}_fit"))]]
+        print(f"talking face{label}, {head}: scaled RMSE / r against the truth: {', '.join(figures)}")
 
 grid = args.shared / "fixtures"
 train = sorted((grid / "grid_train").glob("*.mpg"))
@@ -78,17 +88,21 @@ for half, clips in halves.items():
         with concurrent.futures.ThreadPoolExecutor(2) as pool:
             tables = list(pool.map(lambda clip: process(clip, head), clips))
         per_clip = {"width": [], "height": []}
+        after = {"width": [], "height": []}
         seen = words = 0
         for clip, table in zip(clips, tables):
             rows = list(csv.DictReader(open(table)))
             for m in per_clip:
                 per_clip[m].append(agreement(column(rows, f"{m}_2d"), column(rows, f"{m}_fit")))
+                later = after_identity(rows)
+                after[m].append(agreement(column(later, f"{m}_2d"), column(later, f"{m}_fit")))
             closure = json.loads(subprocess.run(
                 [lipdrive, "eval", "--pred", table, "--align", clip.with_suffix(".align"), "--columns", "height_fit",
                  "--json"], capture_output=True, text=True, check=True).stdout)["closure"][0]
             seen += closure["closures_seen"]
             words += closure["bilabial_words"]
-        figures = [f"{m}_fit {statistics.median(a[0] for a in v):.3f} / {statistics.median(a[1] for a in v):.3f}"
-                   for m, v in per_clip.items()]
+        def medians(per):
+            return ", ".join(f"{m}_fit {statistics.median(a[0] for a in v):.3f} / {statistics.median(a[1] for a in v):.3f}"
+                             for m, v in per.items())
         print(f"GRID {half} ({len(clips)} clips), {head}: median scaled RMSE / r against the landmarks: "
-              f"{', '.join(figures)}; height_fit closures {seen}/{words}")
+              f"{medians(per_clip)}; height_fit closures {seen}/{words}; from frame {IDENTITY_FRAMES}: {medians(after)}")
