@@ -39,6 +39,8 @@ import subprocess
 import sys
 import tempfile
 
+from grid_halves import grid_halves
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SHARED = ROOT.parent / "shared" / "fixtures"
 BILABIAL = {"bin", "blue", "by", "place", "please", "b", "p", "m"}
@@ -165,8 +167,7 @@ def main():
     parser.add_argument("--build", type=pathlib.Path, default=ROOT / "build")
     parser.add_argument("--keep", type=pathlib.Path, help="keep the profiles and tables here")
     args = parser.parse_args()
-    train = sorted((SHARED / "grid_train").glob("*.mpg"))
-    halves = {"tuning": train[:25], "check": train[25:] + sorted((SHARED / "grid").glob("*.mpg"))}
+    halves = grid_halves(SHARED)
     work = args.keep or pathlib.Path(tempfile.mkdtemp(prefix="arkit-grid-"))
     work.mkdir(parents=True, exist_ok=True)
     with open(work / "log.txt", "w") as log:

@@ -29,6 +29,8 @@ import statistics
 import subprocess
 import tempfile
 
+from grid_halves import grid_halves
+
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 parser.add_argument("--build", default="build", type=pathlib.Path)
 parser.add_argument("--shared", default=pathlib.Path(__file__).resolve().parents[1].parent / "shared",
@@ -80,9 +82,7 @@ for head in HEADS:
                    for a in [agreement(column(truth_rows, f"{m}_2d"), column(frames, f"{m}_fit"))]]
         print(f"talking face{label}, {head}: scaled RMSE / r against the truth: {', '.join(figures)}")
 
-grid = args.shared / "fixtures"
-train = sorted((grid / "grid_train").glob("*.mpg"))
-halves = {"tuning": train[:25], "check": train[25:] + sorted((grid / "grid").glob("*.mpg"))}
+halves = grid_halves(args.shared / "fixtures")
 for half, clips in halves.items():
     for head in HEADS:
         with concurrent.futures.ThreadPoolExecutor(2) as pool:

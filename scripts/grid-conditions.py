@@ -21,6 +21,8 @@ import pathlib
 import subprocess
 import tempfile
 
+from grid_halves import grid_halves
+
 CONDITIONS = {
     "original": None,
     "re-encoded": "null",
@@ -50,11 +52,7 @@ args = parser.parse_args()
 lipdrive = args.build / "lipdrive"
 work = args.keep or pathlib.Path(tempfile.mkdtemp(prefix="grid-conditions-"))
 
-grid = args.shared / "fixtures"
-train = sorted((grid / "grid_train").glob("*.mpg"))
-if not train:
-    raise SystemExit(f"{grid / 'grid_train'}: no GRID clips (../shared is needed for this script)")
-halves = {"tuning": train[:25], "check": train[25:] + sorted((grid / "grid").glob("*.mpg"))}
+halves = grid_halves(args.shared / "fixtures")
 
 
 def score(clip, name, vf):

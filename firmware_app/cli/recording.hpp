@@ -24,7 +24,7 @@ class FrameProcessor;
 /// gather afresh each (FrameProcessor::forget); a take with fewer tracked frames, or whose
 /// frames fail to decode before them, is measured as live (the measuring pass reports the
 /// failure, after the rows before it), and so is one that is not a regular file (a pipe cannot
-/// be read twice). Leaves the processor to detect afresh.
+/// be read twice). After a pass, leaves the processor to detect afresh.
 void fit_take_identity(const std::filesystem::path& input, Rotation rotation, FrameProcessor& processor);
 
 }  // namespace lipdrive
