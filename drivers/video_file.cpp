@@ -8,6 +8,7 @@ extern "C" {
 #include <libavutil/display.h>
 }
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 
@@ -58,6 +59,16 @@ struct VideoFile::Decoder {
   bool draining = false;  // the demuxer is at its end; the decoder gives back what it holds
 
   [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
+
+  /// The decoded picture's place on the stream's timeline in periods of `frame_rate`; -1
+  /// when it has no timestamp or there is no rate.
+  std::int64_t timeline_index(double frame_rate) const {
+    const std::int64_t pts = picture->best_effort_timestamp;
+    if (pts == AV_NOPTS_VALUE || !(frame_rate > 0)) return -1;
+    const AVStream* video = format->streams[stream];
+    const std::int64_t start = video->start_time == AV_NOPTS_VALUE ? 0 : video->start_time;
+    return std::llround(static_cast<double>(pts - start) * av_q2d(video->time_base) * frame_rate);
+  }
 
   /// The next decoded picture; false at the end (or where a damaged file stops decoding).
   bool next() {
@@ -118,6 +129,7 @@ VideoFile::~VideoFile() = default;
 bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   Decoder& d = *decoder_;
   if (!d.next()) return false;
+  frame_index_ = std::max(frame_index_ + 1, d.timeline_index(frame_rate_));
   const bool converted = d.planes.convert(*d.picture, gray) && d.planes.convert_cr(*d.picture, cr);
   const AVDictionaryEntry* exif = av_dict_get(d.picture->metadata, "Orientation", nullptr, 0);
   orientation_ = exif != nullptr ? orientation_of_exif(exif->value) : stream_orientation_;

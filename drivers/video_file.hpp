@@ -47,6 +47,12 @@ class VideoFile {
   double frame_rate() const { return frame_rate_; }
   /// Frames the file declares (or its duration implies); 0 when unknown.
   std::int64_t frame_count() const { return frame_count_; }
+  /// Where the frame read last lies on the file's timeline, counted in frame periods from the
+  /// stream's start (its timestamp times the frame rate, rounded); -1 before the first read. A
+  /// recorder that dropped a frame leaves its slot empty (an AVI's empty chunk, a gap in an
+  /// MP4's or Matroska's timestamps): the frames after it count from their own time, not from
+  /// how many came before. Without timestamps or a frame rate, the frames read before it.
+  std::int64_t frame_index() const { return frame_index_; }
 
   /// The next frame's luma into `gray` and its Cr into `cr` (empty without colour; buffers kept
   /// while the size holds). False at the end of the file, and where the rest of a damaged file
@@ -60,6 +66,7 @@ class VideoFile {
   std::unique_ptr<Decoder> decoder_;
   double frame_rate_ = 0;
   std::int64_t frame_count_ = 0;
+  std::int64_t frame_index_ = -1;
   DisplayOrientation stream_orientation_, orientation_;
 };
 

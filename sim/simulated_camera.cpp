@@ -206,8 +206,11 @@ GrabStatus SimulatedCamera::read_frame(Frame& frame) {
 
 GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
   if (!video_->read(gray_, cr_)) {
-    if (expected_frames_ > 0 && position_ < expected_frames_) {
-      last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(position_) + " of " +
+    // How far the frames reached on the file's timeline, against the frames it declares: slots
+    // a recorder left empty are not missing.
+    const std::int64_t reached = video_->frame_index() + 1;
+    if (expected_frames_ > 0 && reached < expected_frames_) {
+      last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(reached) + " of " +
                     std::to_string(expected_frames_) + " (the file is damaged or truncated)";
       ended_ = true;  // nothing after the damage is readable, so the replay ends here
       return GrabStatus::kCorrupt;
@@ -215,7 +218,7 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
     return GrabStatus::kEndOfStream;
   }
   show(video_->orientation(), frame);
-  frame.media_time_s = static_cast<double>(position_) / frame_rate_;
+  frame.media_time_s = static_cast<double>(video_->frame_index()) / frame_rate_;
   frame.source = video_path_;
   ++position_;
   return GrabStatus::kFrame;

@@ -3,8 +3,10 @@
 #include "core/image_rotation.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
+#include "command_run.hpp"
 #include "exif_jpeg.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -310,6 +312,33 @@ TEST_F(SimulatedCameraTest, ATruncatedVideoYieldsFramesThenCorruptThenEnd) {
   ASSERT_TRUE(camera.last_error().has_value());
   EXPECT_NE(camera.last_error()->find(path.string()), std::string::npos);
   EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+}
+
+TEST_F(SimulatedCameraTest, AFrameTheRecorderDroppedIsAGapInTimeNotDamage) {
+  // The recording without its frame 3, timestamps kept (FFmpeg as a recorder that dropped a
+  // frame writes it): an AVI keeps the slot as an empty chunk and declares 20 frames, a
+  // Matroska file has a gap in its timestamps and a duration of 20 frames. 19 pictures are
+  // in each.
+  const auto source = write_video(kFrames);
+  for (const char* container : {"avi", "mkv"}) {
+    SCOPED_TRACE(container);
+    const fs::path gapped = dir_ / fmt::format("gapped.{}", container);
+    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -vf \"select='not(eq(n\\,3))'\" "
+                                            "-fps_mode passthrough -c:v mjpeg {}",
+                                            source.string(), gapped.string()))
+                  .exit_code,
+              0);
+    SimulatedCamera camera({.input = gapped});
+    Frame frame;
+    for (int i = 0; i < kFrames; ++i) {
+      if (i == 3) continue;
+      ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
+      EXPECT_EQ(decoded_index(frame.gray), i);
+      EXPECT_NEAR(frame.media_time_s, i / kFps, 1e-6) << "frame " << i;
+    }
+    EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+    EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
+  }
 }
 
 // Fault injection (the pipeline's tests of a misbehaving camera rely on these).
