@@ -13,6 +13,7 @@ extern "C" {
 #include <opencv2/core/mat.hpp>
 
 #include <array>
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -55,20 +56,35 @@ class PictureConverter {
   PictureConverter(const PictureConverter&) = delete;
   PictureConverter& operator=(const PictureConverter&) = delete;
 
-  /// False when libswscale cannot convert the picture's format.
-  bool convert(const AVFrame& picture, cv::Mat& gray) {
+  /// The picture's luma in square pixels: a picture whose pixels are not square (`sample_aspect`,
+  /// their width over their height, as FFmpeg guesses it: anamorphic PAL or HDV, 0/1 when
+  /// unknown) is stretched, never shrunk, to the proportions it is shown in, so that a face keeps
+  /// the shape the detector and the landmark predictor know. False when libswscale cannot
+  /// convert the picture's format.
+  bool convert(const AVFrame& picture, cv::Mat& gray, AVRational sample_aspect) {
     const auto format = static_cast<AVPixelFormat>(picture.format);
     const AVPixelFormat layout = without_range(format);
-    scaler_ = sws_getCachedContext(scaler_, picture.width, picture.height, layout, picture.width, picture.height,
-                                   AV_PIX_FMT_GRAY8, SWS_POINT, nullptr, nullptr, nullptr);
+    const cv::Size shown = shown_size(picture.width, picture.height, sample_aspect);
+    const bool stretched = shown != cv::Size(picture.width, picture.height);
+    scaler_ = sws_getCachedContext(scaler_, picture.width, picture.height, layout, shown.width, shown.height,
+                                   AV_PIX_FMT_GRAY8, stretched ? SWS_BILINEAR : SWS_POINT, nullptr, nullptr, nullptr);
     if (scaler_ == nullptr) return false;
     const bool full_range = picture.color_range == AVCOL_RANGE_JPEG || layout != format;
     const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);
     sws_setColorspaceDetails(scaler_, coefficients, full_range ? 1 : 0, coefficients, 1, 0, 1 << 16, 1 << 16);
-    gray.create(picture.height, picture.width, CV_8UC1);
+    gray.create(shown.height, shown.width, CV_8UC1);
     std::uint8_t* planes[] = {gray.data};
     const int strides[] = {static_cast<int>(gray.step[0])};
-    return sws_scale(scaler_, picture.data, picture.linesize, 0, picture.height, planes, strides) == picture.height;
+    return sws_scale(scaler_, picture.data, picture.linesize, 0, picture.height, planes, strides) == shown.height;
+  }
+
+  /// A width × height picture of pixels `sample_aspect` wide for each unit of height, in square
+  /// pixels: the shorter side stretched (a ratio within 1 % of 1, or unknown, keeps the size).
+  static cv::Size shown_size(int width, int height, AVRational sample_aspect) {
+    const double ratio = sample_aspect.num > 0 && sample_aspect.den > 0 ? av_q2d(sample_aspect) : 1.0;
+    if (std::abs(ratio - 1.0) < 0.01) return {width, height};
+    if (ratio > 1) return {static_cast<int>(std::lround(width * ratio)), height};
+    return {width, static_cast<int>(std::lround(height / ratio))};
   }
 
   /// The picture's red-difference chroma (Cr; V of Y'UV) as it was coded, at its own resolution

@@ -134,7 +134,8 @@ bool JpegDecoder::decode(std::span<const std::uint8_t> jpeg, cv::Mat& gray, cv::
   c.packet->size = static_cast<int>(jpeg.size());
   const bool decoded = avcodec_send_packet(c.codec.get(), c.packet.get()) == 0 &&
                        avcodec_receive_frame(c.codec.get(), c.picture.get()) == 0 &&
-                       c.planes.convert(*c.picture, gray) && c.planes.convert_cr(*c.picture, cr);
+                       c.planes.convert(*c.picture, gray, c.picture->sample_aspect_ratio) &&
+                       c.planes.convert_cr(*c.picture, cr);
   c.packet->data = nullptr;
   c.packet->size = 0;
   av_frame_unref(c.picture.get());

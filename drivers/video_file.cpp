@@ -130,7 +130,9 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   Decoder& d = *decoder_;
   if (!d.next()) return false;
   frame_index_ = std::max(frame_index_ + 1, d.timeline_index(frame_rate_));
-  const bool converted = d.planes.convert(*d.picture, gray) && d.planes.convert_cr(*d.picture, cr);
+  const AVRational sample_aspect =
+      av_guess_sample_aspect_ratio(d.format.get(), d.format->streams[d.stream], d.picture.get());
+  const bool converted = d.planes.convert(*d.picture, gray, sample_aspect) && d.planes.convert_cr(*d.picture, cr);
   const AVDictionaryEntry* exif = av_dict_get(d.picture->metadata, "Orientation", nullptr, 0);
   orientation_ = exif != nullptr ? orientation_of_exif(exif->value) : stream_orientation_;
   av_frame_unref(d.picture.get());

@@ -4,6 +4,9 @@
 //
 // Planes as a camera gives them: a Y'CbCr source gives its Y' plane expanded to full range
 // (0..255) and its Cr plane as coded, an RGB source BT.601 luma and Cr; a gray source no Cr.
+// The luma in square pixels: a file whose pixels are not square (anamorphic PAL, HDV) is
+// stretched to the proportions it is shown in; the Cr plane stays as coded (its consumers map
+// it by the ratio of the sizes).
 // As coded, not yet as shown: how the file means them to be seen (a phone held upright
 // records its frames on their side and says so) is read beside them, DisplayOrientation.
 #pragma once

@@ -263,5 +263,34 @@ TEST_F(MediaFilesTest, AVideosDisplayMatrixIsReadAsAClockwiseTurn) {
   }
 }
 
+TEST_F(MediaFilesTest, PixelsThatAreNotSquareAreReadStretchedToTheirShownProportions) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  // The clip's first frame squeezed to 3/4 of its width and declared as 4:3 pixels (as an
+  // anamorphic recording stores it), and squeezed to 3/4 of its height as 3:4 pixels: read in
+  // square pixels, each is the original frame again, up to the squeeze's blur.
+  const fs::path square = dir_ / "square.pgm";
+  ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 1 -pix_fmt gray {}", test::kClip.string(),
+                                          square.string()))
+                .exit_code,
+            0);
+  const cv::Mat original = cv::imread(square.string(), cv::IMREAD_GRAYSCALE);
+  ASSERT_FALSE(original.empty());
+  for (const char* squeeze : {"scale=iw*3/4:ih,setsar=4/3", "scale=iw:ih*3/4,setsar=3/4"}) {
+    SCOPED_TRACE(squeeze);
+    const fs::path file = dir_ / "anamorphic.mkv";
+    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 1 -vf {} -c:v ffv1 {}",
+                                            test::kClip.string(), squeeze, file.string()))
+                  .exit_code,
+              0);
+    VideoFile video(file);
+    cv::Mat gray, cr;
+    ASSERT_TRUE(video.read(gray, cr));
+    ASSERT_EQ(gray.size(), original.size());
+    EXPECT_LT(mean_abs_difference(gray, original), 3.0);
+    EXPECT_LE(cr.cols, gray.cols);
+    EXPECT_LE(cr.rows, gray.rows);
+  }
+}
+
 }  // namespace
 }  // namespace lipdrive
