@@ -1,6 +1,7 @@
 // Pictures through FFmpeg's libraries (drivers/video_file.hpp, drivers/image_codec.hpp),
 // checked against OpenCV's own codecs, which the tests still link: the luma the tracker sees
 // from a replayed clip, an image, a camera's MJPEG frame; the JPEG previews and PNG files.
+#include "drivers/ffmpeg_log.hpp"
 #include "drivers/image_codec.hpp"
 #include "drivers/video_file.hpp"
 #include "command_run.hpp"
@@ -13,10 +14,14 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
 
 #include <array>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <sstream>
 #include <string>
 #include <unistd.h>
 #include <vector>
@@ -289,6 +294,45 @@ TEST_F(MediaFilesTest, PixelsThatAreNotSquareAreReadStretchedToTheirShownProport
     EXPECT_LT(mean_abs_difference(gray, original), 3.0);
     EXPECT_LE(cr.cols, gray.cols);
     EXPECT_LE(cr.rows, gray.rows);
+  }
+}
+
+TEST_F(MediaFilesTest, FfmpegsMessagesReachTheLogAsWholeLinesNamedByTheirComponent) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  std::ostringstream log;
+  const auto before = spdlog::default_logger();
+  auto logger = std::make_shared<spdlog::logger>("test", std::make_shared<spdlog::sinks::ostream_sink_mt>(log));
+  logger->set_pattern("%l: %v");
+  spdlog::set_default_logger(logger);
+  route_ffmpeg_log();
+  // An empty .mp4 (MP4's demuxer finds no index), and an MPEG program stream cut short: its
+  // demuxer writes "Packet corrupt (...)" and "." as two pieces of one line, for every packet.
+  const fs::path empty = dir_ / "empty.mp4", whole = dir_ / "whole.mpg", cut = dir_ / "cut.mpg";
+  std::ofstream{empty};
+  EXPECT_THROW(VideoFile{empty}, MediaError);
+  ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 20 -c:v mpeg1video -f mpeg {}",
+                                          test::kClip.string(), whole.string()))
+                .exit_code,
+            0);
+  fs::copy_file(whole, cut);
+  fs::resize_file(cut, 5000);
+  {
+    VideoFile video(cut);
+    cv::Mat gray, cr;
+    while (video.read(gray, cr)) {
+    }
+  }
+  spdlog::set_default_logger(before);
+
+  EXPECT_THAT(log.str(), HasSubstr("warning: ffmpeg: mov,mp4,m4a,3gp,3g2,mj2: moov atom not found\n"));
+  EXPECT_THAT(log.str(), HasSubstr("warning: ffmpeg: mpeg: Packet corrupt (stream = 0, dts = NOPTS).\n"));
+  EXPECT_THAT(log.str(), ::testing::ContainsRegex("warning: ffmpeg: mpeg: Packet corrupt \\(stream = 0, dts = "
+                                                  "NOPTS\\)\\. \\([0-9]+ more times\\)"));
+  std::istringstream lines(log.str());
+  for (std::string line; std::getline(lines, line);) {
+    EXPECT_THAT(line, ::testing::StartsWith("warning: ffmpeg: "));
+    EXPECT_THAT(line, ::testing::Not(::testing::HasSubstr(" @ 0x")));  // no addresses
+    EXPECT_THAT(line, ::testing::Not(::testing::EndsWith(": .")));     // no piece of a line alone
   }
 }
 

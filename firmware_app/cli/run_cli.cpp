@@ -1,5 +1,6 @@
 #include "firmware_app/cli/run_cli.hpp"
 
+#include "drivers/ffmpeg_log.hpp"
 #include "firmware_app/cli/command_error.hpp"
 
 #include <CLI/CLI.hpp>
@@ -13,6 +14,7 @@ namespace lipdrive {
 void set_up_logging(const std::string& name) {
   spdlog::set_default_logger(spdlog::stderr_color_mt(name));
   spdlog::set_pattern("%^%l%$: %v");
+  route_ffmpeg_log();
 }
 
 int run_cli(CLI::App& app, int argc, char** argv) {

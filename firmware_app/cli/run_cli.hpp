@@ -10,7 +10,7 @@ class App;
 
 namespace lipdrive {
 
-/// Logs to stderr as "level: message" under `name`.
+/// Logs to stderr as "level: message" under `name`, FFmpeg's messages too.
 void set_up_logging(const std::string& name);
 
 /// Parses the command line and runs the chosen subcommand. Returns the exit code: 0, the

@@ -1,0 +1,13 @@
+// FFmpeg's own messages (a damaged packet, a file without its index, a decoder concealing
+// errors) through spdlog, as every other message of lipdrive, instead of FFmpeg's default of
+// printing them to stderr in its own format.
+#pragma once
+
+namespace lipdrive {
+
+/// From now on FFmpeg's errors and warnings are logged as warnings, "ffmpeg: mpegts: Packet
+/// corrupt ...", its information as debug messages, the rest dropped. Call once, before FFmpeg
+/// is used; its threads may log at any time after.
+void route_ffmpeg_log();
+
+}  // namespace lipdrive
