@@ -407,7 +407,7 @@ void add_process_command(CLI::App& app) {
                   "the daemon's configuration file: [model] and [tracker] settings (default: the built-in defaults)");
   cmd->add_option("--model", options->model, "morphable model (.lpm; default: [model] file, else the built-in model)");
   cmd->add_option("--landmark-set", options->landmark_set,
-                  "landmarks used by the fit (docs/method.md; default: [model] landmark_set, else F4)")
+                  "landmarks used by the fit (docs/method.md; default: [model] landmark_set, else F5)")
       ->check(CLI::IsMember(std::vector<std::string>(kLandmarkSetNames.begin(), kLandmarkSetNames.end())));
   cmd->add_option("--predictor", options->predictor,
                   fmt::format("landmark predictor (.lpp or dlib .dat; default: [tracker] predictor, else {})",
