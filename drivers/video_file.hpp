@@ -7,7 +7,7 @@
 // The luma in square pixels: a file whose pixels are not square (anamorphic PAL, HDV) is
 // stretched to the proportions it is shown in; the Cr plane stays as coded (its consumers map
 // it by the ratio of the sizes).
-// As coded, not yet as shown: how the file means them to be seen (a phone held upright
+// Turned as coded, not yet as shown: how the file means them to be seen (a phone held upright
 // records its frames on their side and says so) is read beside them, DisplayOrientation.
 #pragma once
 
