@@ -213,7 +213,12 @@ SideProfile SideProfileMeter::find(const cv::Mat& gray) {
 
 SideMeasure SideProfileMeter::measure(const cv::Mat& gray, const SideReference& reference) {
   SideMeasure m{find(gray)};
-  if (m.ok()) m.protrusion = (m.profile.lip_lead_px - reference.lip_lead_px) / reference.nose_length_px;
+  if (!m.ok()) return m;
+  if (std::abs(m.profile.nose_length_px / reference.nose_length_px - 1) > settings_.max_nose_change) {
+    m.profile.status = SideStatus::kNotTheFace;
+    return m;
+  }
+  m.protrusion = (m.profile.lip_lead_px - reference.lip_lead_px) / reference.nose_length_px;
   return m;
 }
 

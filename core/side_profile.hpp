@@ -48,6 +48,11 @@ struct SideProfileSettings {
   /// and an outline digitised to pixels steps by up to a pixel even where it is convex.
   double min_feature = 0.04;
   double min_feature_px = 2;
+  /// The nose root–tip distance may differ from the calibrated one by at most this fraction:
+  /// the camera moves with the head and speech does not move the nose, so a profile whose nose
+  /// is longer or shorter than that is not the calibrated face (something else in view, or the
+  /// camera moved on the rig).
+  double max_nose_change = 0.25;
 };
 
 enum class SideStatus {
@@ -56,6 +61,7 @@ enum class SideStatus {
   kNoSilhouette,  // no contrast between face and background, or no face pixel
   kNoNose,        // no nose tip standing out in front of a nose root
   kNoLip,         // no subnasale below the tip, or no upper lip before the mouth line
+  kNotTheFace,    // a complete profile whose nose is not the calibrated one's length (measure())
 };
 
 /// The profile of one frame. The points are in frame pixels; each is set once the search
@@ -89,7 +95,8 @@ class SideProfileMeter {
 
   /// The profile of one grey frame (CV_8UC1; std::invalid_argument otherwise).
   SideProfile find(const cv::Mat& gray);
-  /// The protrusion of one grey frame against a calibrated reference.
+  /// The protrusion of one grey frame against a calibrated reference; kNotTheFace when the
+  /// profile's nose is not the reference's length (settings().max_nose_change).
   SideMeasure measure(const cv::Mat& gray, const SideReference& reference);
 
   const SideProfileSettings& settings() const { return settings_; }

@@ -179,6 +179,30 @@ TEST_P(SideProfileTest, HeadShiftMovesTheMeasureLittle) {
   }
 }
 
+TEST_P(SideProfileTest, AProfileWhoseNoseIsAnotherLengthIsNotTheCalibratedFace) {
+  // The camera moves with the head, so the calibrated nose keeps its length in the picture.
+  // The same profile larger about its nose tip (the camera slipped closer on the rig, or
+  // another face in view) is a complete profile but not the calibrated one; a little larger
+  // is within max_nose_change.
+  SideProfileMeter meter = view().meter();
+  const SideReference reference = neutral_reference(meter, view());
+  const cv::Mat neutral = view().grey("neutral");
+  const cv::Point2f tip = meter.find(neutral).nose_tip;
+  for (const double scale : {1.1, 1.4}) {
+    cv::Mat larger;
+    cv::warpAffine(neutral, larger, cv::Matx23d(scale, 0, (1 - scale) * tip.x, 0, scale, (1 - scale) * tip.y),
+                   neutral.size(), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    ASSERT_TRUE(meter.find(larger).ok()) << scale;
+    const SideMeasure m = meter.measure(larger, reference);
+    if (scale - 1 < meter.settings().max_nose_change) {
+      EXPECT_TRUE(m.ok()) << scale;
+    } else {
+      EXPECT_EQ(m.profile.status, SideStatus::kNotTheFace) << scale;
+      EXPECT_TRUE(std::isnan(m.protrusion)) << scale;
+    }
+  }
+}
+
 TEST_P(SideProfileTest, ACropAroundTheLowerFaceMeasuresTheSame) {
   SideProfileMeter full = view().meter();
   const SideReference full_reference = neutral_reference(full, view());

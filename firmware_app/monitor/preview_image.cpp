@@ -65,9 +65,9 @@ std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, JpegEn
   const int k = frame.side_decimation;
   const SideProfile& p = frame.side_profile;
   // The points are set as far as the search got (core/side_profile.hpp): the tip from kNoNose
-  // on, the root from kNoLip on, the rest with kOk.
+  // on, the root from kNoLip on, the rest with kOk and kNotTheFace.
   if (p.status == SideStatus::kNoNose) dot(canvas, p.nose_tip, k, kBoxColour);
-  if (p.status == SideStatus::kNoLip || p.ok()) {
+  if (p.status == SideStatus::kNoLip || p.status == SideStatus::kNotTheFace || p.ok()) {
     cv::line(canvas, to_canvas(p.nose_root, k), to_canvas(p.nose_tip, k), kBoxColour, 1, cv::LINE_AA, kShift);
     dot(canvas, p.nose_root, k, kBoxColour);
     dot(canvas, p.nose_tip, k, kBoxColour);
@@ -86,6 +86,7 @@ std::string side_preview_jpeg(const PreviewFrame& frame, cv::Mat& canvas, JpegEn
     case SideStatus::kNoSilhouette: warn(canvas, "no profile", line); break;
     case SideStatus::kNoNose: warn(canvas, "no nose", line); break;
     case SideStatus::kNoLip: warn(canvas, "no upper lip", line); break;
+    case SideStatus::kNotTheFace: warn(canvas, "not the calibrated profile", line); break;
   }
   return encoder.encode(canvas);
 }
