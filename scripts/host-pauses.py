@@ -26,10 +26,11 @@ def spin(core, seconds, out):
         t = now()
         pause = t - last
         last = t
-        if pause > 500_000:
-            for i, limit in enumerate(LIMITS_MS):
-                counts[i] += pause > limit * 1e6
-            longest = max(longest, pause)
+        for i, limit in enumerate(LIMITS_MS):
+            if pause <= limit * 1e6:
+                break
+            counts[i] += 1
+        longest = max(longest, pause)
     out.put((core, counts, longest / 1e6))
 
 
