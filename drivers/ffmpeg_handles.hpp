@@ -12,6 +12,7 @@ extern "C" {
 
 #include <opencv2/core/mat.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <memory>
@@ -59,15 +60,17 @@ class PictureConverter {
   /// The picture's luma in square pixels: a picture whose pixels are not square (`sample_aspect`,
   /// their width over their height, as FFmpeg guesses it: anamorphic PAL or HDV, 0/1 when
   /// unknown) is stretched, never shrunk, to the proportions it is shown in, so that a face keeps
-  /// the shape the detector and the landmark predictor know. False when libswscale cannot
-  /// convert the picture's format.
+  /// the shape the detector and the landmark predictor know. An interlaced picture is read from
+  /// its first field alone (first_field()), brought back to the picture's height. False when
+  /// libswscale cannot convert the picture's format.
   bool convert(const AVFrame& picture, cv::Mat& gray, AVRational sample_aspect) {
     const auto format = static_cast<AVPixelFormat>(picture.format);
     const AVPixelFormat layout = without_range(format);
+    const Lines lines = first_field(picture);
     const cv::Size shown = shown_size(picture.width, picture.height, sample_aspect);
-    const bool stretched = shown != cv::Size(picture.width, picture.height);
-    scaler_ = sws_getCachedContext(scaler_, picture.width, picture.height, layout, shown.width, shown.height,
-                                   AV_PIX_FMT_GRAY8, stretched ? SWS_BILINEAR : SWS_POINT, nullptr, nullptr, nullptr);
+    const bool resized = shown != cv::Size(picture.width, lines.height);
+    scaler_ = sws_getCachedContext(scaler_, picture.width, lines.height, layout, shown.width, shown.height,
+                                   AV_PIX_FMT_GRAY8, resized ? SWS_BILINEAR : SWS_POINT, nullptr, nullptr, nullptr);
     if (scaler_ == nullptr) return false;
     const bool full_range = picture.color_range == AVCOL_RANGE_JPEG || layout != format;
     const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);
@@ -75,7 +78,40 @@ class PictureConverter {
     gray.create(shown.height, shown.width, CV_8UC1);
     std::uint8_t* planes[] = {gray.data};
     const int strides[] = {static_cast<int>(gray.step[0])};
-    return sws_scale(scaler_, picture.data, picture.linesize, 0, picture.height, planes, strides) == shown.height;
+    return sws_scale(scaler_, lines.data, lines.linesize, 0, lines.height, planes, strides) == shown.height;
+  }
+
+  /// The rows of a picture's planes that the tracker reads.
+  struct Lines {
+    const std::uint8_t* data[AV_NUM_DATA_POINTERS] = {};
+    int linesize[AV_NUM_DATA_POINTERS] = {};
+    int height = 0;      // of the luma plane
+    bool field = false;  // every second line of an interlaced picture
+  };
+
+  /// An interlaced picture holds two fields in alternate lines, captured half a frame period
+  /// apart: a mouth that moves between them shows both positions combed together, which the
+  /// landmark predictor reads as neither. Its first field in time (the one the picture's
+  /// timestamp is for: the top one of a top-field-first picture) is every second line of
+  /// each plane, its height rounded down so that the chroma lines stay inside the field. A
+  /// progressive picture is taken whole.
+  static Lines first_field(const AVFrame& picture) {
+    Lines lines;
+    const auto format = static_cast<AVPixelFormat>(picture.format);
+    const AVPixFmtDescriptor* desc = av_pix_fmt_desc_get(format);
+    const bool interlaced = picture.interlaced_frame != 0 && desc != nullptr && picture.height >= 4 &&
+                            (desc->flags & AV_PIX_FMT_FLAG_PAL) == 0;
+    const int field = interlaced && picture.top_field_first == 0 ? 1 : 0;
+    const int planes = interlaced ? av_pix_fmt_count_planes(format) : 0;
+    for (int p = 0; p < AV_NUM_DATA_POINTERS; ++p) {
+      const bool split = p < planes && picture.data[p] != nullptr;
+      lines.data[p] =
+          split ? picture.data[p] + static_cast<std::ptrdiff_t>(field) * picture.linesize[p] : picture.data[p];
+      lines.linesize[p] = split ? 2 * picture.linesize[p] : picture.linesize[p];
+    }
+    lines.field = interlaced;
+    lines.height = interlaced ? (picture.height / 2) >> desc->log2_chroma_h << desc->log2_chroma_h : picture.height;
+    return lines;
   }
 
   /// A width × height picture of pixels `sample_aspect` wide for each unit of height, in square
@@ -102,19 +138,24 @@ class PictureConverter {
     const AVComponentDescriptor& v = desc->comp[2];
     if ((desc->flags & (AV_PIX_FMT_FLAG_RGB | AV_PIX_FMT_FLAG_PAL)) == 0 && v.depth == 8 && v.shift == 0) {
       // Y'CbCr with 8-bit Cr, planar (step 1) or interleaved with Cb (NV12: step 2).
+      // The rows of an interlaced picture's first field, each twice.
       const int width = AV_CEIL_RSHIFT(picture.width, desc->log2_chroma_w);
       const int height = AV_CEIL_RSHIFT(picture.height, desc->log2_chroma_h);
+      const Lines lines = first_field(picture);
+      const int rows = lines.field ? AV_CEIL_RSHIFT(lines.height, desc->log2_chroma_h) : height;
       cr.create(height, width, CV_8UC1);
       for (int y = 0; y < height; ++y) {
+        const int row = lines.field ? std::min(y / 2, rows - 1) : y;
         const std::uint8_t* from =
-            picture.data[v.plane] + static_cast<std::ptrdiff_t>(y) * picture.linesize[v.plane] + v.offset;
+            lines.data[v.plane] + static_cast<std::ptrdiff_t>(row) * lines.linesize[v.plane] + v.offset;
         std::uint8_t* to = cr.ptr<std::uint8_t>(y);
         for (int x = 0; x < width; ++x) to[x] = from[x * v.step];
       }
       return true;
     }
+    const Lines lines = first_field(picture);
     chroma_scaler_ =
-        sws_getCachedContext(chroma_scaler_, picture.width, picture.height, without_range(format), picture.width,
+        sws_getCachedContext(chroma_scaler_, picture.width, lines.height, without_range(format), picture.width,
                              picture.height, AV_PIX_FMT_YUV444P, SWS_POINT, nullptr, nullptr, nullptr);
     if (chroma_scaler_ == nullptr) return false;
     const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);  // full-range Cr, as JPEG codes it
@@ -125,7 +166,7 @@ class PictureConverter {
     std::uint8_t* planes[] = {luma_and_cb_.ptr(0), luma_and_cb_.ptr(rows), cr.ptr(0)};
     const int strides[] = {static_cast<int>(luma_and_cb_.step[0]), static_cast<int>(luma_and_cb_.step[0]),
                            static_cast<int>(cr.step[0])};
-    return sws_scale(chroma_scaler_, picture.data, picture.linesize, 0, rows, planes, strides) == rows;
+    return sws_scale(chroma_scaler_, lines.data, lines.linesize, 0, lines.height, planes, strides) == rows;
   }
 
   /// JPEG's full-range formats as the same layout in video range (libswscale takes the range
