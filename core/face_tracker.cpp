@@ -2,6 +2,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -46,8 +47,11 @@ bool FaceTracker::acquire(const cv::Mat& gray, Landmarks2D& landmarks) {
   }
   if (acquire_among(detector_.detect(gray), 1, gray, landmarks)) return true;
   if (!still_) return false;
-  cv::resize(gray, resized_, {}, 2, 2, cv::INTER_LINEAR);
-  return acquire_among(detector_.detect(resized_), 2, gray, landmarks);
+  const double enlargement =
+      std::min(2.0, std::sqrt(settings_.max_enlarged_still_pixels / static_cast<double>(gray.total())));
+  if (enlargement < 1.2) return false;
+  cv::resize(gray, resized_, {}, enlargement, enlargement, cv::INTER_LINEAR);
+  return acquire_among(detector_.detect(resized_), enlargement, gray, landmarks);
 }
 
 bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale, const cv::Mat& gray,

@@ -527,6 +527,17 @@ TEST(FaceTracker, AStillLooksForASmallFaceAtTwiceItsSize) {
   EXPECT_LT((small_landmarks - expected).colwise().norm().mean(), 0.1 * interocular_distance(expected));
   tracker.reset(FaceTracker::Next::kVideo);
   EXPECT_EQ(tracker.track(small, small_landmarks), TrackStatus::kNoFace) << "until the next still";
+
+  // A photograph too large to enlarge twice is enlarged less, and one too large to enlarge at
+  // all is searched at its own size alone: the same small face, with the limit at 3 and at 1.2
+  // times the picture's pixels.
+  const double pixels = static_cast<double>(small.total());
+  FaceTracker bounded(test::shared_predictor(), {.max_enlarged_still_pixels = 3 * pixels});
+  bounded.reset(FaceTracker::Next::kStill);
+  EXPECT_EQ(bounded.track(small, small_landmarks), TrackStatus::kAcquired) << "enlarged 1.7 times";
+  FaceTracker unenlarged(test::shared_predictor(), {.max_enlarged_still_pixels = 1.2 * pixels});
+  unenlarged.reset(FaceTracker::Next::kStill);
+  EXPECT_EQ(unenlarged.track(small, small_landmarks), TrackStatus::kNoFace) << "enlarged under 1.2 times: not searched";
 }
 
 // A head-mounted camera's face fills the picture: with [tracker] min_face_px the detector
