@@ -104,6 +104,7 @@ double SimulatedCamera::duration_s() const {
 
 void SimulatedCamera::rewind() {
   position_ = 0;
+  last_index_ = -1;
   // Reopening is exact where seeking to frame 0 is not for every codec.
   if (kind_ == Kind::kVideo) open_video();
 }
@@ -143,16 +144,25 @@ std::optional<GrabStatus> SimulatedCamera::injected_outage(std::chrono::millisec
 void SimulatedCamera::skip_frames_due() {
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
   const auto due = static_cast<std::uint64_t>(std::max<std::int64_t>(monotonic_ns() - start_ns_, 0) / period_ns);
-  Frame skipped;
   while (sequence_ < due) {
-    GrabStatus status = read_frame(skipped);
-    if (status == GrabStatus::kEndOfStream && options_.loop && position_ > 0) {
-      rewind();
-      status = read_frame(skipped);
-    }
-    if (status == GrabStatus::kEndOfStream) return;  // grab() finds the end itself
-    ++sequence_;                                     // never delivered: the gap in the sequence numbers shows the loss
+    if (!read_ahead()) return;  // grab() finds the end itself
+    read_ahead_ = false;
+    ++sequence_;  // never delivered: the gap in the sequence numbers shows the loss
   }
+}
+
+bool SimulatedCamera::read_ahead() {
+  if (read_ahead_) return true;
+  GrabStatus status = read_frame(next_);
+  // position_ > 0: a recording without a single frame must not loop forever.
+  if (status == GrabStatus::kEndOfStream && options_.loop && position_ > 0) {
+    rewind();
+    status = read_frame(next_);
+  }
+  if (status == GrabStatus::kEndOfStream) return false;
+  next_status_ = status;
+  read_ahead_ = true;
+  return true;
 }
 
 GrabStatus SimulatedCamera::inject_frame_faults() {
@@ -177,27 +187,23 @@ GrabStatus SimulatedCamera::inject_frame_faults() {
 }
 
 GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout) {
-  if (ended_) return GrabStatus::kEndOfStream;
+  if (ended_ && !read_ahead_) return GrabStatus::kEndOfStream;
   if (const auto outage = injected_outage(timeout)) return *outage;
+  // The frame is read before it is due: its place on the file's timeline sets its slot.
+  if (!read_ahead()) {
+    ended_ = true;
+    return GrabStatus::kEndOfStream;
+  }
   if (options_.real_time) {
     if (start_ns_ == 0) start_ns_ = clock_ ? clock_->start_ns() : monotonic_ns();
     if (!wait_until_due(timeout)) return GrabStatus::kTimeout;
   }
-
-  GrabStatus status = read_frame(frame);
-  // position_ > 0: a recording without a single frame must not loop forever.
-  if (status == GrabStatus::kEndOfStream && options_.loop && position_ > 0) {
-    rewind();
-    status = read_frame(frame);
-  }
-  if (status == GrabStatus::kEndOfStream) {
-    ended_ = true;
-    return status;
-  }
+  read_ahead_ = false;
+  frame = next_;
   // A frame that could not be decoded still used up its slot: the sequence gap shows it.
   frame.sequence = sequence_++;
   frame.capture_time_ns = monotonic_ns();
-  return status == GrabStatus::kFrame ? inject_frame_faults() : status;
+  return next_status_ == GrabStatus::kFrame ? inject_frame_faults() : next_status_;
 }
 
 GrabStatus SimulatedCamera::read_frame(Frame& frame) {
@@ -218,7 +224,11 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
     return GrabStatus::kEndOfStream;
   }
   show(video_->orientation(), frame);
-  frame.media_time_s = static_cast<double>(video_->frame_index()) / frame_rate_;
+  // Slots the recorder left empty before this frame are slots of the replay too.
+  const std::int64_t index = video_->frame_index();
+  sequence_ += static_cast<std::uint64_t>(std::max<std::int64_t>(index - last_index_ - 1, 0));
+  last_index_ = index;
+  frame.media_time_s = static_cast<double>(index) / frame_rate_;
   frame.source = video_path_;
   ++position_;
   return GrabStatus::kFrame;

@@ -1,6 +1,7 @@
 #include "sim/simulated_camera.hpp"
 
 #include "core/image_rotation.hpp"
+#include "drivers/clock.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "command_run.hpp"
@@ -95,7 +96,7 @@ TEST_F(SimulatedCameraTest, RealTimePacingTakesTheRecordingsDuration) {
   while (camera.grab(frame, kLongTimeout) == GrabStatus::kFrame) ++delivered;
   const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(delivered, kFrames);
-  // Frame 0 is due at once, frame N-1 at (N-1)/fps; the end is reported one period later.
+  // Frame 0 is due at once, frame N-1 at (N-1)/fps; the end is reported right after it.
   EXPECT_NEAR(elapsed_s, kFrames / kFps, 0.3 * kFrames / kFps);
 }
 
@@ -328,16 +329,27 @@ TEST_F(SimulatedCameraTest, AFrameTheRecorderDroppedIsAGapInTimeNotDamage) {
                                             source.string(), gapped.string()))
                   .exit_code,
               0);
-    SimulatedCamera camera({.input = gapped});
-    Frame frame;
-    for (int i = 0; i < kFrames; ++i) {
-      if (i == 3) continue;
-      ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
-      EXPECT_EQ(decoded_index(frame.gray), i);
-      EXPECT_NEAR(frame.media_time_s, i / kFps, 1e-6) << "frame " << i;
+    // Replayed as fast as it decodes and in real time: the slot is a gap in the sequence
+    // numbers, as a camera's lost frame is, and in real time a gap in time, so that the frames
+    // after it are shown when their sound is heard (each no earlier than its place on the
+    // file's timeline after the replay began).
+    for (const bool real_time : {false, true}) {
+      SCOPED_TRACE(real_time ? "in real time" : "as fast as it decodes");
+      SimulatedCamera camera({.input = gapped, .real_time = real_time, .replay_rate = real_time ? 100.0 : 0.0});
+      const double period_s = real_time ? 1.0 / 100 : 1.0 / kFps;
+      const std::int64_t began_ns = monotonic_ns();
+      Frame frame;
+      for (int i = 0; i < kFrames; ++i) {
+        if (i == 3) continue;
+        ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
+        EXPECT_EQ(decoded_index(frame.gray), i);
+        EXPECT_EQ(frame.sequence, static_cast<std::uint64_t>(i));
+        EXPECT_NEAR(frame.media_time_s, i * period_s, 1e-6) << "frame " << i;
+        if (real_time) EXPECT_GE(frame.capture_time_ns - began_ns, std::llround(i * period_s * 1e9)) << "frame " << i;
+      }
+      EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+      EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
     }
-    EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
-    EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
   }
 }
 
