@@ -31,6 +31,10 @@ double stream_start_s(const AVStream* stream) {
 /// One file's decoder and resampler; decode() appends the mono samples.
 class TrackDecoder {
  public:
+  /// The most the track's timestamps and its samples may disagree before the samples are
+  /// moved to their timestamps (codecs' frames and containers' rounding stay well under it).
+  static constexpr double kMaxDrift_s = 0.02;
+
   TrackDecoder(const std::filesystem::path& file, int sample_rate) : name_(file.string()), rate_(sample_rate) {
     AVFormatContext* format = nullptr;
     if (const int e = avformat_open_input(&format, name_.c_str(), nullptr, nullptr); e < 0)
@@ -45,6 +49,8 @@ class TrackDecoder {
     const AVStream* audio = format->streams[stream_];
     const int video = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, nullptr, 0);
     start_s_ = stream_start_s(audio) - (video >= 0 ? stream_start_s(format->streams[video]) : 0.0);
+    time_base_ = audio->time_base;
+    first_pts_ = audio->start_time == AV_NOPTS_VALUE ? 0 : audio->start_time;
 
     codec_.reset(avcodec_alloc_context3(codec));
     if (!codec_) fail("out of memory");
@@ -60,6 +66,11 @@ class TrackDecoder {
         e < 0)
       fail(fmt::format("cannot resample: {}", error_text(e)));
     resampler_.reset(resampler);
+    // Samples placed by their timestamps: where the track's timestamps run ahead of its samples
+    // by more than kMaxDrift_s (a recorder lost some), libswresample fills the gap with
+    // silence; where they fall behind (overlap), it drops the excess. Nothing is stretched.
+    av_opt_set_double(resampler, "min_comp", kMaxDrift_s, 0);
+    av_opt_set_double(resampler, "min_hard_comp", kMaxDrift_s, 0);
     if (const int e = swr_init(resampler); e < 0) fail(fmt::format("cannot resample: {}", error_text(e)));
     channels_ = codec_->ch_layout.nb_channels;
     if (channels_ < 1) fail("the audio track has no channels");
@@ -97,6 +108,12 @@ class TrackDecoder {
       const int e = avcodec_receive_frame(codec_.get(), frame);
       if (e == AVERROR(EAGAIN) || e == AVERROR_EOF) return;
       if (e < 0) fail(fmt::format("cannot decode the audio: {}", error_text(e)));
+      // The frame's place after the track's first sample, in libswresample's units of
+      // 1 / (input rate × output rate) seconds.
+      const std::int64_t pts = frame->best_effort_timestamp;
+      const std::int64_t units_per_tick = static_cast<std::int64_t>(time_base_.num) * codec_->sample_rate * rate_;
+      swr_next_pts(resampler_.get(),
+                   pts == AV_NOPTS_VALUE ? INT64_MIN : av_rescale(pts - first_pts_, units_per_tick, time_base_.den));
       convert(const_cast<const std::uint8_t**>(frame->extended_data), frame->nb_samples, out);
       av_frame_unref(frame);
     }
@@ -129,6 +146,8 @@ class TrackDecoder {
   int stream_ = -1;
   int channels_ = 0;
   double start_s_ = 0;
+  AVRational time_base_{1, 1};
+  std::int64_t first_pts_ = 0;  // the track's start, in time_base_
   std::vector<std::vector<float>> planes_;
 };
 

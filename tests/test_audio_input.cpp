@@ -294,6 +294,25 @@ TEST(AudioFile, DecodesTheTrackResampledToMonoOnTheVideosTimeline) {
   EXPECT_NEAR(static_cast<double>(onset) / 16000 + audio.start_s, 0.6, 0.01);
 }
 
+TEST(AudioFile, SoundTheRecorderDroppedIsAGapInTimeNotLost) {
+  // 3 s of a track whose samples from 1.0 to 1.5 s are missing, timestamps kept (a recorder
+  // that lost them), and a 440 Hz tone from 2.0 to 2.5 s: decoded, the gap is silence and the
+  // tone is heard at its time, not half a second early.
+  const test::TempDir dir;
+  const fs::path clip = dir.path() / "gapped.mkv";
+  ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -f lavfi -i sine=f=440:d=3:r=48000 -af "
+                                          "\"volume='between(t,2,2.5)':eval=frame,aselect='not(between(t,1,1.5))'\" "
+                                          "-c:a pcm_s16le {}",
+                                          clip.string()))
+                .exit_code,
+            0);
+  const DecodedAudio audio = decode_audio(clip, 16000);
+  EXPECT_NEAR(static_cast<double>(audio.samples.size()) / 16000, 3.0, 0.03);
+  std::size_t onset = 0;
+  while (onset < audio.samples.size() && std::abs(audio.samples[onset]) < 0.05) ++onset;
+  EXPECT_NEAR(static_cast<double>(onset) / 16000 + audio.start_s, 2.0, 0.01);
+}
+
 TEST(AudioFile, AClipWithoutAudioOrAFileThatIsNoRecordingIsAnErrorNamingIt) {
   const test::TempDir dir;
   const fs::path silent = dir.path() / "video_only.avi";
