@@ -101,8 +101,11 @@ bool is_bilabial_word(std::string_view word) {
   return std::find(kWords.begin(), kWords.end(), word) != kWords.end();
 }
 
-ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words) {
+ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words,
+                             double frames_per_second) {
   const int n = static_cast<int>(values.size());
+  const auto widening = static_cast<int>(std::lround(ClosureMetric::kWidening_s * frames_per_second));
+  const auto silence_delay = static_cast<int>(std::lround(ClosureMetric::kSilenceDelay_s * frames_per_second));
   // Min-max scaled over the tracked frames; untracked frames stay NaN.
   double lowest = std::numeric_limits<double>::infinity(), highest = -lowest;
   for (double v : values)
@@ -119,8 +122,7 @@ ClosureMetric closure_metric(std::span<const double> values, std::span<const Wor
         if (!std::isnan(scaled[f])) speech.push_back(scaled[f]);
     if (!is_bilabial_word(w.word)) continue;
     WordClosure closure{std::string(w.word), w.first, w.last, kNaN, false};
-    for (int f = std::max(w.first - ClosureMetric::kWidening, 0);
-         f <= std::min(w.last + ClosureMetric::kWidening, n - 1); ++f)
+    for (int f = std::max(w.first - widening, 0); f <= std::min(w.last + widening, n - 1); ++f)
       if (!std::isnan(scaled[f]))
         closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
     closure.closed = closure.minimum <= ClosureMetric::kClosureLevel;
@@ -136,7 +138,7 @@ ClosureMetric closure_metric(std::span<const double> values, std::span<const Wor
   std::vector<double> silence;
   double steps = 0;
   int step_count = 0;
-  const int first = std::max(last_silence->first + ClosureMetric::kSilenceDelay, 0);
+  const int first = std::max(last_silence->first + silence_delay, 0);
   const int last = std::min(last_silence->last, n - 1);
   for (int f = first; f <= last; ++f) {
     if (std::isnan(scaled[f])) continue;

@@ -67,14 +67,16 @@ struct WordClosure {
 
 /// Whether a mouth-opening series closes on the bilabial words and opens on the others.
 /// Per clip, the series is min-max scaled over its tracked (finite) frames. A bilabial word
-/// shows its closure when the minimum scaled value over its frames widened by 2 on each side
-/// is at most kClosureLevel. Opening: the 90th percentile (nearest rank) of the scaled values
-/// over the frames of non-silence words. Final silence: from 3 frames after the start of the
-/// last silence to its end, the median of the scaled values and their mean absolute
-/// frame-to-frame change (jitter, over consecutive tracked frames).
+/// shows its closure when the minimum scaled value over its frames widened by kWidening_s on
+/// each side is at most kClosureLevel. Opening: the 90th percentile (nearest rank) of the
+/// scaled values over the frames of non-silence words. Final silence: from kSilenceDelay_s
+/// after the start of the last silence to its end, the median of the scaled values and their
+/// mean absolute frame-to-frame change (jitter, over consecutive tracked frames).
 struct ClosureMetric {
   static constexpr double kClosureLevel = 0.2;
-  static constexpr int kWidening = 2, kSilenceDelay = 3;
+  /// 2 and 3 frames of GRID's 25 fps video, as times, so that a recording at another frame
+  /// rate is scored over the same stretches.
+  static constexpr double kWidening_s = 0.08, kSilenceDelay_s = 0.12;
   int bilabial_words = 0, closures_seen = 0;
   std::vector<WordClosure> words;  // every bilabial word, in transcript order
   double opening = 0;              // NaN when no speech frame was tracked
@@ -82,8 +84,9 @@ struct ClosureMetric {
   double silence_jitter = 0;
 };
 
-/// `values[f]` is frame f's value, NaN when it was not tracked; words outside the series
-/// are clipped to it.
-ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words);
+/// `values[f]` is frame f's value at `frames_per_second`, NaN when it was not tracked; words
+/// outside the series are clipped to it.
+ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words,
+                             double frames_per_second);
 
 }  // namespace lipdrive

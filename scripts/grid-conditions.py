@@ -40,6 +40,10 @@ CONDITIONS = {
     "half size": "scale=iw/2:-2",
     "twice the size": "scale=iw*2:-2",
     "monochrome": "format=gray,format=yuv420p",
+    "30 frames/s": "fps=30",
+    "60 frames/s": "fps=60",
+    # Two fields a frame, from consecutive frames 40 ms apart, coded as interlaced video.
+    "interlaced": ("tinterlace=mode=interleave_top,setfield=tff", ["-flags", "+ildct+ilme", "-x264-params", "tff=1"]),
 }
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -55,16 +59,18 @@ work = args.keep or pathlib.Path(tempfile.mkdtemp(prefix="grid-conditions-"))
 halves = grid_halves(args.shared / "fixtures")
 
 
-def score(clip, name, vf):
-    """The closure metric of one clip under one condition (lipdrive eval's JSON)."""
-    folder = work / name.replace(" ", "_")
+def score(clip, name, condition):
+    """The closure metric of one clip under one condition (lipdrive eval's JSON). A condition
+    is an ffmpeg filter, or a filter and the encoder options it needs."""
+    folder = work / name.replace(" ", "_").replace("/", "_")
     folder.mkdir(parents=True, exist_ok=True)
     source = clip
-    if vf is not None:
+    if condition is not None:
+        vf, encoding = condition if isinstance(condition, tuple) else (condition, [])
         source = folder / f"{clip.stem}.mp4"
         if not source.exists():
             subprocess.run(["ffmpeg", "-loglevel", "error", "-y", "-i", clip, "-vf", vf, "-c:v", "libx264", "-crf",
-                            "16", "-pix_fmt", "yuv420p", "-c:a", "copy", source], check=True)
+                            "16", "-pix_fmt", "yuv420p", *encoding, "-c:a", "copy", source], check=True)
     table = folder / f"{clip.stem}.csv"
     subprocess.run([lipdrive, "process", source, "--out", table], check=True, stdout=subprocess.DEVNULL,
                    stderr=subprocess.DEVNULL)

@@ -189,6 +189,33 @@ TEST_F(EvalPlotTest, EvalWithAlignmentAloneReportsTheClosureMetric) {
   EXPECT_THAT(neither.err, HasSubstr("--truth"));
 }
 
+TEST_F(EvalPlotTest, EvalPlacesTheWordsOnTheFramesOfARecordingAtAnyRate) {
+  // The worked example above recorded at 50 frames/s (each frame twice): the words fall on
+  // the frames of their times, and the widening and the silence's delay are the same times,
+  // so the figures are the same.
+  const double open[] = {0.1, 0.1, 0.5, 0.0, 0.8, 1.0, 0.9, 0.6, 0.55, 0.3, 0.3, 0.1, 0.1, 0.12, 0.1, 0.1, 0.1};
+  std::string csv = "frame,time_s,tracked,open\n";
+  for (int f = 0; f < 34; ++f) csv += fmt::format("{},{:.4f},1,{}\n", f, f / 50.0, open[f / 2]);
+  const auto pred = write("pred.csv", csv);
+  const auto align =
+      write("take.align", "0 2000 sil\n2000 4000 bin\n4000 7000 one\n7000 9000 please\n9000 17000 sil\n");
+  const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  const auto report = nlohmann::json::parse(result.out);
+  const auto& closure = report.at("closure")[0];
+  EXPECT_EQ(closure.at("closures_seen"), 1);  // "bin" closes, "please" does not
+  EXPECT_NEAR(closure.at("opening").get<double>(), 1.0, 1e-9);
+  // Final silence from frame 18 + 6: 0.1 0.1 0.12 0.12 0.1 0.1 0.1 0.1 0.1 0.1.
+  EXPECT_NEAR(closure.at("silence_median").get<double>(), 0.1, 1e-9);
+  EXPECT_NEAR(closure.at("silence_jitter").get<double>(), 0.04 / 9, 1e-9);
+  ASSERT_EQ(closure.at("words").size(), 2u);
+  EXPECT_EQ(closure.at("words")[1].at("first"), 14);  // "please" from 7000 / 25000 s
+
+  const RunResult table = run({"eval", "--pred", pred, "--align", align, "--columns", "open"});
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  EXPECT_THAT(table.out, HasSubstr("at 50 frames/s"));
+}
+
 TEST_F(EvalPlotTest, EvalComparesTwoProcessOutputsAsATable) {
   const auto a = write("a.csv", kPredCsv);
   const auto b = write("b.csv", kPredCsv);
@@ -224,6 +251,13 @@ TEST_F(EvalPlotTest, EvalErrorsNameTheProblem) {
   const RunResult malformed = run({"eval", "--truth", truth, "--pred", ragged});
   EXPECT_EQ(malformed.exit_code, 65);
   EXPECT_THAT(malformed.err, HasSubstr(ragged.string() + ":3"));
+
+  // Frames a microsecond apart: no frame rate the words could be placed at.
+  const auto hurried = write("hurried.csv", "frame,time_s,tracked,open\n0,0,1,0.1\n1000,0.001,1,0.2\n");
+  const auto align = write("take.align", "0 2000 sil\n2000 4000 bin\n");
+  const RunResult rate = run({"eval", "--pred", hurried, "--align", align});
+  EXPECT_EQ(rate.exit_code, 65);
+  EXPECT_THAT(rate.err, HasSubstr(hurried.string() + ": its frame and time_s columns give 1e+06 frames per second"));
 }
 
 TEST_F(EvalPlotTest, CsvReaderHandlesQuotesAndEmptyFields) {
@@ -271,14 +305,14 @@ TEST_F(EvalPlotTest, GridAlignmentOfSharedFixture) {
 
   // "bin" is 23750-29500: frame 23 spans 23000-24000 and overlaps it, frame 29
   // spans 29000-30000 and holds its end, frame 30 starts at its end.
-  const auto bin = word_frame_range(words, "bin");
+  const auto bin = word_frame_range(words, "bin", kGridFramesPerSecond);
   ASSERT_TRUE(bin.has_value());
   EXPECT_EQ(bin->first, 23);
   EXPECT_EQ(bin->last, 29);
-  EXPECT_FALSE(word_frame_range(words, "lay").has_value());
+  EXPECT_FALSE(word_frame_range(words, "lay", kGridFramesPerSecond).has_value());
 
   // Speech runs from "bin" to "now" (47250-53000: frames 47-52) without a pause.
-  const auto speech = speech_frames(words);
+  const auto speech = speech_frames(words, kGridFramesPerSecond);
   EXPECT_EQ(*speech.begin(), 23);
   EXPECT_EQ(*speech.rbegin(), 52);
   EXPECT_EQ(speech.size(), 30u);

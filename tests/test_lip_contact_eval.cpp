@@ -74,7 +74,7 @@ ClipSeries process_clip(const fs::path& video, bool colour) {
   ClipSeries clip;
   clip.name = video.stem().string();
   clip.align = read_grid_align(fs::path(video).replace_extension(".align"));
-  clip.words = word_frames(clip.align);
+  clip.words = word_frames(clip.align, kGridFramesPerSecond);
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
   VideoFile file(video);
   cv::Mat gray, cr;
@@ -107,7 +107,7 @@ struct HalfFigures {
 HalfFigures score(const std::vector<ClipSeries>& clips, std::vector<double> ClipSeries::*series) {
   HalfFigures h;
   for (const ClipSeries& clip : clips) {
-    const ClosureMetric m = closure_metric(clip.*series, clip.words);
+    const ClosureMetric m = closure_metric(clip.*series, clip.words, kGridFramesPerSecond);
     ++h.clips;
     h.words += m.bilabial_words;
     h.closures += m.closures_seen;

@@ -110,7 +110,7 @@ const std::vector<WordFrames> kWords = {{0, 2, "sil", true},   {3, 5, "bin", fal
 TEST(ClosureMetric, WorkedExample) {
   // Range 0..10, so the scaled value is v / 10.
   const std::vector<double> v = {5, 5, 5, 10, 1, 10, 10, 10, 10, 10, 10, 0, 2, 0, 0, 1, 0, 0, 0};
-  const ClosureMetric m = closure_metric(v, kWords);
+  const ClosureMetric m = closure_metric(v, kWords, 25);
   ASSERT_EQ(m.bilabial_words, 2);
   EXPECT_EQ(m.closures_seen, 1);
   ASSERT_EQ(m.words.size(), 2u);
@@ -132,7 +132,7 @@ TEST(ClosureMetric, UntrackedFramesAreLeftOutNotCountedAsClosed) {
   std::vector<double> v = {5, 5, 5, 10, 1, 10, 10, 10, 10, 10, 10, 0, 2, 0, 0, 1, 0, 0, 0};
   v[4] = kNaN;  // the closure frame was not tracked
   v[16] = kNaN;
-  const ClosureMetric m = closure_metric(v, kWords);
+  const ClosureMetric m = closure_metric(v, kWords, 25);
   EXPECT_NEAR(m.words[0].minimum, 0.5, kTolerance);
   EXPECT_FALSE(m.words[0].closed);
   EXPECT_EQ(m.closures_seen, 0);
@@ -146,10 +146,10 @@ TEST(ClosureMetric, BilabialWordsOfTheGridGrammar) {
   for (const char* word : {"bat", "sil", "set", "lay", "f", "n", "white", "soon"})
     EXPECT_FALSE(is_bilabial_word(word)) << word;
   const std::vector<double> flat(19, 3.0);
-  const ClosureMetric m = closure_metric(flat, kWords);  // no range: everything scales to 0
+  const ClosureMetric m = closure_metric(flat, kWords, 25);  // no range: everything scales to 0
   EXPECT_EQ(m.closures_seen, 2);
   EXPECT_NEAR(m.opening, 0.0, kTolerance);
-  const ClosureMetric none = closure_metric(flat, std::vector<WordFrames>{{0, 18, "bin", false}});
+  const ClosureMetric none = closure_metric(flat, std::vector<WordFrames>{{0, 18, "bin", false}}, 25);
   EXPECT_TRUE(std::isnan(none.silence_median));  // no silence in the transcript
 }
 

@@ -91,6 +91,24 @@ std::vector<int> frame_numbers(const CsvTable& table) {
   return frames;
 }
 
+/// The table's frames per second from its frame and time_s columns (first and last rows, to a
+/// thousandth: time_s is written to 0.1 ms); GRID's 25 without a time_s column or a second
+/// time. Throws naming the file for a rate outside 1..1000.
+double frames_per_second(const CsvTable& table) {
+  if (!has_column(table, "time_s")) return kGridFramesPerSecond;
+  const std::vector<int> frames = frame_numbers(table);
+  const std::vector<double> times = numeric_column(table, "time_s");
+  if (frames.size() < 2 || !(times.back() > times.front())) return kGridFramesPerSecond;
+  const double rate = std::round(1000.0 * (frames.back() - frames.front()) / (times.back() - times.front())) / 1000;
+  if (!(rate >= 1 && rate <= 1000)) {
+    throw CommandError(
+        fmt::format("{}: its frame and time_s columns give {:.3g} frames per second (1 to 1000 expected)",
+                    table.path.string(), rate),
+        kExitDataError);
+  }
+  return rate;
+}
+
 /// Row indices (truth, pred) of the frames present in both tables, in truth order;
 /// restricted to `scored_frames` when given.
 std::vector<std::pair<std::size_t, std::size_t>> matched_rows(const CsvTable& truth, const CsvTable& pred,
@@ -141,7 +159,7 @@ std::vector<std::string> output_columns(const CsvTable& pred) {
 /// closure_metric of each column, its values placed by frame number (NaN where a frame is
 /// missing or was not tracked).
 std::vector<ColumnClosure> closure_columns(const CsvTable& pred, const std::vector<std::string>& columns,
-                                           std::span<const WordFrames> words) {
+                                           std::span<const WordFrames> words, double frames_per_second) {
   const std::vector<int> frames = frame_numbers(pred);
   const int count = frames.empty() ? 0 : *std::max_element(frames.begin(), frames.end()) + 1;
   std::vector<ColumnClosure> results;
@@ -149,7 +167,7 @@ std::vector<ColumnClosure> closure_columns(const CsvTable& pred, const std::vect
     const std::vector<double> values = numeric_column(pred, column);
     std::vector<double> series(static_cast<std::size_t>(count), std::nan(""));
     for (std::size_t row = 0; row < frames.size(); ++row) series[static_cast<std::size_t>(frames[row])] = values[row];
-    results.push_back({column, closure_metric(series, words)});
+    results.push_back({column, closure_metric(series, words, frames_per_second)});
   }
   return results;
 }
@@ -168,8 +186,8 @@ void print_table(const std::vector<ColumnAgreement>& results) {
 void print_closures(const std::vector<ColumnClosure>& results) {
   std::size_t name_width = std::string_view("column").size();
   for (const auto& result : results) name_width = std::max(name_width, result.column.size());
-  fmt::print("closure metric (min-max scaled; a closure is <= {:.1f} within {} frames of a bilabial word):\n",
-             ClosureMetric::kClosureLevel, ClosureMetric::kWidening);
+  fmt::print("closure metric (min-max scaled; a closure is <= {:.1f} within {:.0f} ms of a bilabial word):\n",
+             ClosureMetric::kClosureLevel, 1000 * ClosureMetric::kWidening_s);
   fmt::print("{:<{}} {:>10} {:>8} {:>15} {:>15}\n", "column", name_width, "closures", "opening", "silence_median",
              "silence_jitter");
   for (const auto& [column, m] : results) {
@@ -233,6 +251,7 @@ void run_eval(const EvalOptions& options) {
   const CsvTable pred = read_csv_table(options.pred_path);
   std::vector<AlignedWord> align;
   if (!options.align_path.empty()) align = read_grid_align(options.align_path);
+  const double rate = align.empty() ? kGridFramesPerSecond : frames_per_second(pred);  // the words' frames
 
   std::vector<ColumnAgreement> results;
   std::size_t frames_matched = 0;
@@ -241,7 +260,7 @@ void run_eval(const EvalOptions& options) {
     const CsvTable truth = read_csv_table(options.truth_path);
     if (columns.empty()) columns = default_columns(truth, pred);
     std::optional<std::set<int>> scored_frames;
-    if (!align.empty()) scored_frames = speech_frames(align);
+    if (!align.empty()) scored_frames = speech_frames(align, rate);
     const auto rows = matched_rows(truth, pred, scored_frames);
     if (rows.empty()) {
       throw CommandError(fmt::format("{} and {} have no {}frames in common", options.truth_path, options.pred_path,
@@ -254,7 +273,7 @@ void run_eval(const EvalOptions& options) {
     columns = output_columns(pred);
   }
   std::vector<ColumnClosure> closures;
-  if (!align.empty()) closures = closure_columns(pred, columns, word_frames(align));
+  if (!align.empty()) closures = closure_columns(pred, columns, word_frames(align, rate), rate);
 
   if (options.json) {
     std::cout << to_json(options, frames_matched, results, closures).dump(2) << '\n';
@@ -266,7 +285,7 @@ void run_eval(const EvalOptions& options) {
     print_table(results);
   }
   if (!align.empty()) {
-    fmt::print("output {} against the words of {}\n", options.pred_path, options.align_path);
+    fmt::print("output {} against the words of {} at {:g} frames/s\n", options.pred_path, options.align_path, rate);
     print_closures(closures);
   }
 }

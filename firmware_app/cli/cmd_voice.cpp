@@ -134,13 +134,18 @@ Scores score(const VoiceModel& model, const VoiceRecording& recording) {
   const std::size_t n = recording.targets.size();
   std::vector<bool> speech(n);
   for (std::size_t i = 0; i < n; ++i) speech[i] = recording.targets[i].speech;
-  // The final silence: from 3 frames into the last silent stretch to the end (docs/method.md 5).
+  // The final silence: from 0.12 s into the last silent stretch to the end (docs/method.md 5;
+  // a millisecond's allowance for the frames' rounded times).
   int first = static_cast<int>(n), last = static_cast<int>(n) - 1;
   while (first > 0 && !speech[static_cast<std::size_t>(first - 1)]) --first;
-  if (first == static_cast<int>(n) || first == 0)
+  if (first == static_cast<int>(n) || first == 0) {
     first = last + 1;  // no speech or no final silence
-  else
-    first += ClosureMetric::kSilenceDelay;
+  } else {
+    const double begins_s = recording.targets[static_cast<std::size_t>(first)].time_s;
+    while (first <= last &&
+           recording.targets[static_cast<std::size_t>(first)].time_s < begins_s + ClosureMetric::kSilenceDelay_s - 1e-3)
+      ++first;
+  }
   Scores s;
   s.name = recording.name;
   for (std::size_t k = 0; k < kNumVoiceTargets; ++k) {

@@ -6,15 +6,16 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
 namespace lipdrive {
 namespace {
 
-// An alignment covers one take: an hour at 25 frames/s is far beyond any, and keeps every
-// frame number an int and the frame sets eval builds small.
-constexpr long kMaxAlignTime = 3600L * 25 * kAlignUnitsPerFrame;
+// An alignment covers one take: an hour is far beyond any, and keeps every frame number an
+// int and the frame sets eval builds small.
+constexpr long kMaxAlignTime = 3600L * kAlignUnitsPerSecond;
 
 std::optional<long> parse_time(const std::string& text) {
   long value = 0;
@@ -60,36 +61,40 @@ std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path) {
 
 bool is_silence(const AlignedWord& word) { return word.word == "sil" || word.word == "sp"; }
 
-FrameRange frame_range(const AlignedWord& word) {
-  // Frame f spans [1000 f, 1000 (f + 1)); end is exclusive, so the last frame
-  // holds time end - 1.
-  return {static_cast<int>(word.start / kAlignUnitsPerFrame), static_cast<int>((word.end - 1) / kAlignUnitsPerFrame)};
+FrameRange frame_range(const AlignedWord& word, double frames_per_second) {
+  // Frame f spans [f, f + 1) / frames_per_second; end is exclusive, so the last frame holds
+  // time end - 1.
+  const auto frame_at = [frames_per_second](long time) {
+    return static_cast<int>(std::floor(static_cast<double>(time) * frames_per_second / kAlignUnitsPerSecond));
+  };
+  return {frame_at(word.start), frame_at(word.end - 1)};
 }
 
-std::set<int> speech_frames(std::span<const AlignedWord> words) {
+std::set<int> speech_frames(std::span<const AlignedWord> words, double frames_per_second) {
   std::set<int> frames;
   for (const AlignedWord& word : words) {
     if (is_silence(word)) continue;
-    const FrameRange range = frame_range(word);
+    const FrameRange range = frame_range(word, frames_per_second);
     for (int frame = range.first; frame <= range.last; ++frame) frames.insert(frame);
   }
   return frames;
 }
 
-std::vector<WordFrames> word_frames(std::span<const AlignedWord> words) {
+std::vector<WordFrames> word_frames(std::span<const AlignedWord> words, double frames_per_second) {
   std::vector<WordFrames> frames;
   frames.reserve(words.size());
   for (const AlignedWord& word : words) {
-    const FrameRange range = frame_range(word);
+    const FrameRange range = frame_range(word, frames_per_second);
     frames.push_back({range.first, range.last, word.word, is_silence(word)});
   }
   return frames;
 }
 
-std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word) {
+std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word,
+                                           double frames_per_second) {
   const auto it = std::find_if(words.begin(), words.end(), [word](const AlignedWord& w) { return w.word == word; });
   if (it == words.end()) return std::nullopt;
-  return frame_range(*it);
+  return frame_range(*it, frames_per_second);
 }
 
 }  // namespace lipdrive

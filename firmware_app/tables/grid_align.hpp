@@ -1,5 +1,6 @@
 // GRID corpus word alignments (.align): one "start end word" line per word, times
-// in 1/25000 s, so 1000 units are one 25 fps video frame; "sil" and "sp" are silence.
+// in 1/25000 s, so 1000 units are one frame of GRID's 25 fps video; "sil" and "sp" are
+// silence. The words are placed on the frames of a recording at any rate.
 #pragma once
 
 #include "core/metrics.hpp"
@@ -14,7 +15,8 @@
 
 namespace lipdrive {
 
-inline constexpr long kAlignUnitsPerFrame = 1000;  // 25000 units/s at 25 frames/s
+inline constexpr long kAlignUnitsPerSecond = 25000;
+inline constexpr double kGridFramesPerSecond = 25;  // GRID's own video
 
 struct AlignedWord {
   long start = 0;  // inclusive, align units
@@ -35,18 +37,19 @@ std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path);
 
 bool is_silence(const AlignedWord& word);
 
-/// The frames whose time span [f, f+1) × 1000 units overlaps the word's span, so a
-/// frame that is only partly inside the word still counts: the lips move ahead of
-/// the sound, and an overlap rule never drops a short word.
-FrameRange frame_range(const AlignedWord& word);
+/// The frames, at `frames_per_second`, whose time span [f, f+1) / frames_per_second overlaps
+/// the word's span, so a frame that is only partly inside the word still counts: the lips
+/// move ahead of the sound, and an overlap rule never drops a short word.
+FrameRange frame_range(const AlignedWord& word, double frames_per_second);
 
 /// Frames overlapping any non-silence word.
-std::set<int> speech_frames(std::span<const AlignedWord> words);
+std::set<int> speech_frames(std::span<const AlignedWord> words, double frames_per_second);
 
 /// The words as closure_metric (core/metrics.hpp) takes them; they refer to `words`' text.
-std::vector<WordFrames> word_frames(std::span<const AlignedWord> words);
+std::vector<WordFrames> word_frames(std::span<const AlignedWord> words, double frames_per_second);
 
 /// The frame range of the first occurrence of `word`, or nullopt when absent.
-std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word);
+std::optional<FrameRange> word_frame_range(std::span<const AlignedWord> words, std::string_view word,
+                                           double frames_per_second);
 
 }  // namespace lipdrive

@@ -59,10 +59,12 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
   fit_take_identity(clip, Rotation::k0, processor);  // the first clip's, kept for the others (one performer)
   processor.forget(FaceTracker::Next::kVideo);
   Frame frame;
+  std::vector<int> frame_numbers;  // each target's place on the video's timeline
   for (GrabStatus status;
        (status = camera->grab(frame, std::chrono::milliseconds(1000))) != GrabStatus::kEndOfStream;) {
     if (status != GrabStatus::kFrame) continue;
     const FrameMeasurement& m = processor.process(frame.gray, frame.cr);
+    frame_numbers.push_back(static_cast<int>(std::lround(frame.media_time_s * camera->frame_rate())));
     VoiceTargetFrame target;
     target.time_s = frame.media_time_s - sound.start_s;
     target.tracked = m.tracked;
@@ -74,9 +76,9 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
   std::error_code ec;
   if (fs::exists(align, ec)) {
     const std::vector<AlignedWord> words = read_grid_align(align);
-    const std::set<int> speech = speech_frames(words);
+    const std::set<int> speech = speech_frames(words, camera->frame_rate());
     for (std::size_t i = 0; i < recording.targets.size(); ++i)
-      recording.targets[i].speech = speech.contains(static_cast<int>(i));
+      recording.targets[i].speech = speech.contains(frame_numbers[i]);
     recording.has_transcript = true;
   }
   return recording;

@@ -6,8 +6,8 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
     const auto words = lipdrive::read_grid_align(lipdrive::fuzz::input_file(data, size, ".align"));
-    lipdrive::speech_frames(words);
-    for (const auto& word : words) lipdrive::word_frame_range(words, word.word);
+    lipdrive::speech_frames(words, lipdrive::kGridFramesPerSecond);
+    for (const auto& word : words) lipdrive::word_frame_range(words, word.word, lipdrive::kGridFramesPerSecond);
   } catch (const lipdrive::CommandError&) {
   }
   return 0;
