@@ -16,6 +16,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -151,15 +152,18 @@ TEST_F(EvalPlotTest, EvalWithAlignmentScoresOnlySpeechFrames) {
   EXPECT_TRUE(width.at("pearson_r").is_null());  // one pair: no correlation
 }
 
+// A worked example of the closure metric at GRID's 25 fps: silence 0-1, "bin" 2-3 (the lips
+// meet at frame 3), "one" 4-6, "please" 7-8 (within 2 frames of it nothing below 0.3 of the
+// range), final silence 9-16, scored from frame 12.
+constexpr std::array kWorkedOpen = {0.1, 0.1, 0.5, 0.0, 0.8,  1.0, 0.9, 0.6, 0.55,
+                                    0.3, 0.3, 0.1, 0.1, 0.12, 0.1, 0.1, 0.1};
+constexpr const char* kWorkedAlign = "0 2000 sil\n2000 4000 bin\n4000 7000 one\n7000 9000 please\n9000 17000 sil\n";
+
 TEST_F(EvalPlotTest, EvalWithAlignmentAloneReportsTheClosureMetric) {
-  // Silence 0-1, "bin" 2-3 (the lips meet at frame 3), "one" 4-6, "please" 7-8 (within 2
-  // frames of it nothing below 0.3 of the range), final silence 9-16, scored from frame 12.
   std::string csv = "frame,tracked,open\n";
-  const double open[] = {0.1, 0.1, 0.5, 0.0, 0.8, 1.0, 0.9, 0.6, 0.55, 0.3, 0.3, 0.1, 0.1, 0.12, 0.1, 0.1, 0.1};
-  for (int f = 0; f < 17; ++f) csv += fmt::format("{},1,{}\n", f, open[f]);
+  for (std::size_t f = 0; f < kWorkedOpen.size(); ++f) csv += fmt::format("{},1,{}\n", f, kWorkedOpen[f]);
   const auto pred = write("pred.csv", csv);
-  const auto align =
-      write("take.align", "0 2000 sil\n2000 4000 bin\n4000 7000 one\n7000 9000 please\n9000 17000 sil\n");
+  const auto align = write("take.align", kWorkedAlign);
   const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const auto report = nlohmann::json::parse(result.out);
@@ -190,15 +194,14 @@ TEST_F(EvalPlotTest, EvalWithAlignmentAloneReportsTheClosureMetric) {
 }
 
 TEST_F(EvalPlotTest, EvalPlacesTheWordsOnTheFramesOfARecordingAtAnyRate) {
-  // The worked example above recorded at 50 frames/s (each frame twice): the words fall on
-  // the frames of their times, and the widening and the silence's delay are the same times,
-  // so the figures are the same.
-  const double open[] = {0.1, 0.1, 0.5, 0.0, 0.8, 1.0, 0.9, 0.6, 0.55, 0.3, 0.3, 0.1, 0.1, 0.12, 0.1, 0.1, 0.1};
+  // The worked example recorded at 50 frames/s (each frame twice): the words fall on the
+  // frames of their times, and the widening and the silence's delay are the same times, so the
+  // figures are the same.
   std::string csv = "frame,time_s,tracked,open\n";
-  for (int f = 0; f < 34; ++f) csv += fmt::format("{},{:.4f},1,{}\n", f, f / 50.0, open[f / 2]);
+  for (std::size_t f = 0; f < 2 * kWorkedOpen.size(); ++f)
+    csv += fmt::format("{},{:.4f},1,{}\n", f, f / 50.0, kWorkedOpen[f / 2]);
   const auto pred = write("pred.csv", csv);
-  const auto align =
-      write("take.align", "0 2000 sil\n2000 4000 bin\n4000 7000 one\n7000 9000 please\n9000 17000 sil\n");
+  const auto align = write("take.align", kWorkedAlign);
   const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const auto report = nlohmann::json::parse(result.out);

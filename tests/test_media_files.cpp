@@ -38,6 +38,12 @@ double mean_abs_difference(const cv::Mat& a, const cv::Mat& b) {
   return cv::mean(difference)[0];
 }
 
+/// Runs `ffmpeg -v error -y ARGUMENTS`; a failure fails the test (wrap in ASSERT_NO_FATAL_FAILURE).
+void ffmpeg(const std::string& arguments) {
+  const test::CommandRun run = test::run_command("ffmpeg -v error -y " + arguments);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+}
+
 /// A BGR test card: gradients, edges and text, so codecs have something to get wrong.
 cv::Mat test_card() {
   cv::Mat bgr(240, 320, CV_8UC3);
@@ -248,14 +254,9 @@ TEST_F(MediaFilesTest, AVideosDisplayMatrixIsReadAsAClockwiseTurn) {
   // its display matrix, and so must the planes as read be, once turned.
   for (const int tag : {0, 90, 180, 270}) {
     const fs::path file = dir_ / fmt::format("rotate{}.mov", tag), first = dir_ / fmt::format("rotate{}.pgm", tag);
-    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 3 -c copy -metadata:s:v:0 rotate={} {}",
-                                            test::kClip.string(), tag, file.string()))
-                  .exit_code,
-              0);
-    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 1 -pix_fmt gray {}", file.string(),
-                                            first.string()))
-                  .exit_code,
-              0);
+    ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-i {} -frames:v 3 -c copy -metadata:s:v:0 rotate={} {}",
+                                               test::kClip.string(), tag, file.string())));
+    ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-i {} -frames:v 1 -pix_fmt gray {}", file.string(), first.string())));
     VideoFile video(file);
     cv::Mat gray, cr;
     ASSERT_TRUE(video.read(gray, cr));
@@ -274,19 +275,15 @@ TEST_F(MediaFilesTest, PixelsThatAreNotSquareAreReadStretchedToTheirShownProport
   // anamorphic recording stores it), and squeezed to 3/4 of its height as 3:4 pixels: read in
   // square pixels, each is the original frame again, up to the squeeze's blur.
   const fs::path square = dir_ / "square.pgm";
-  ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 1 -pix_fmt gray {}", test::kClip.string(),
-                                          square.string()))
-                .exit_code,
-            0);
+  ASSERT_NO_FATAL_FAILURE(
+      ffmpeg(fmt::format("-i {} -frames:v 1 -pix_fmt gray {}", test::kClip.string(), square.string())));
   const cv::Mat original = cv::imread(square.string(), cv::IMREAD_GRAYSCALE);
   ASSERT_FALSE(original.empty());
   for (const char* squeeze : {"scale=iw*3/4:ih,setsar=4/3", "scale=iw:ih*3/4,setsar=3/4"}) {
     SCOPED_TRACE(squeeze);
     const fs::path file = dir_ / "anamorphic.mkv";
-    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 1 -vf {} -c:v ffv1 {}",
-                                            test::kClip.string(), squeeze, file.string()))
-                  .exit_code,
-              0);
+    ASSERT_NO_FATAL_FAILURE(
+        ffmpeg(fmt::format("-i {} -frames:v 1 -vf {} -c:v ffv1 {}", test::kClip.string(), squeeze, file.string())));
     VideoFile video(file);
     cv::Mat gray, cr;
     ASSERT_TRUE(video.read(gray, cr));
@@ -303,10 +300,7 @@ TEST_F(MediaFilesTest, AnInterlacedPictureIsReadFromItsFirstFieldAlone) {
   // different picture half a frame period later), coded interlaced in both field orders: read,
   // each is the first frame again, up to the field's half height, not the two combed together.
   const fs::path first = dir_ / "first.mkv";
-  ASSERT_EQ(test::run_command(
-                fmt::format("ffmpeg -v error -y -i {} -frames:v 1 -c:v ffv1 {}", test::kClip.string(), first.string()))
-                .exit_code,
-            0);
+  ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-i {} -frames:v 1 -c:v ffv1 {}", test::kClip.string(), first.string())));
   cv::Mat original, original_cr;
   ASSERT_TRUE(VideoFile(first).read(original, original_cr));
   const std::pair<const char*, int> orders[] = {{"interleave_top,setfield=tff", 1},
@@ -314,12 +308,11 @@ TEST_F(MediaFilesTest, AnInterlacedPictureIsReadFromItsFirstFieldAlone) {
   for (const auto& [interleave, top_first] : orders) {
     SCOPED_TRACE(interleave);
     const fs::path file = dir_ / "interlaced.mpg";
-    ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -filter_complex "
-                                            "\"[0:v]trim=end_frame=1,split[a][b];[b]negate[n];[a][n]concat=n=2,"
-                                            "tinterlace={}\" -c:v mpeg2video -flags +ildct+ilme -top {} -q:v 2 {}",
-                                            test::kClip.string(), interleave, top_first, file.string()))
-                  .exit_code,
-              0);
+    ASSERT_NO_FATAL_FAILURE(
+        ffmpeg(fmt::format("-i {} -filter_complex "
+                           "\"[0:v]trim=end_frame=1,split[a][b];[b]negate[n];[a][n]concat=n=2,"
+                           "tinterlace={}\" -c:v mpeg2video -flags +ildct+ilme -top {} -q:v 2 {}",
+                           test::kClip.string(), interleave, top_first, file.string())));
     VideoFile video(file);
     cv::Mat gray, cr;
     ASSERT_TRUE(video.read(gray, cr));
@@ -343,10 +336,8 @@ TEST_F(MediaFilesTest, FfmpegsMessagesReachTheLogAsWholeLinesNamedByTheirCompone
   const fs::path empty = dir_ / "empty.mp4", whole = dir_ / "whole.mpg", cut = dir_ / "cut.mpg";
   std::ofstream{empty};
   EXPECT_THROW(VideoFile{empty}, MediaError);
-  ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -i {} -frames:v 20 -c:v mpeg1video -f mpeg {}",
-                                          test::kClip.string(), whole.string()))
-                .exit_code,
-            0);
+  ASSERT_NO_FATAL_FAILURE(
+      ffmpeg(fmt::format("-i {} -frames:v 20 -c:v mpeg1video -f mpeg {}", test::kClip.string(), whole.string())));
   fs::copy_file(whole, cut);
   fs::resize_file(cut, 5000);
   {
