@@ -145,14 +145,14 @@ void SimulatedCamera::skip_frames_due() {
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
   const auto due = static_cast<std::uint64_t>(std::max<std::int64_t>(monotonic_ns() - start_ns_, 0) / period_ns);
   while (sequence_ < due) {
-    if (!read_ahead()) return;  // grab() finds the end itself
-    read_ahead_ = false;
+    if (!read_next()) return;  // grab() finds the end itself
+    held_ = false;
     ++sequence_;  // never delivered: the gap in the sequence numbers shows the loss
   }
 }
 
-bool SimulatedCamera::read_ahead() {
-  if (read_ahead_) return true;
+bool SimulatedCamera::read_next() {
+  if (held_) return true;
   GrabStatus status = read_frame(next_);
   // position_ > 0: a recording without a single frame must not loop forever.
   if (status == GrabStatus::kEndOfStream && options_.loop && position_ > 0) {
@@ -161,7 +161,7 @@ bool SimulatedCamera::read_ahead() {
   }
   if (status == GrabStatus::kEndOfStream) return false;
   next_status_ = status;
-  read_ahead_ = true;
+  held_ = true;
   return true;
 }
 
@@ -187,18 +187,20 @@ GrabStatus SimulatedCamera::inject_frame_faults() {
 }
 
 GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout) {
-  if (ended_ && !read_ahead_) return GrabStatus::kEndOfStream;
+  if (ended_ && !held_) return GrabStatus::kEndOfStream;
   if (const auto outage = injected_outage(timeout)) return *outage;
-  // The frame is read before it is due: its place on the file's timeline sets its slot.
-  if (!read_ahead()) {
-    ended_ = true;
-    return GrabStatus::kEndOfStream;
-  }
   if (options_.real_time) {
     if (start_ns_ == 0) start_ns_ = clock_ ? clock_->start_ns() : monotonic_ns();
     if (!wait_until_due(timeout)) return GrabStatus::kTimeout;
   }
-  read_ahead_ = false;
+  // Read when the next slot is due (decoding then, as a camera delivers, not while the frame
+  // before is processed); a frame after slots the recorder left empty is held to its own.
+  if (!read_next()) {
+    ended_ = true;
+    return GrabStatus::kEndOfStream;
+  }
+  if (options_.real_time && !wait_until_due(timeout)) return GrabStatus::kTimeout;
+  held_ = false;
   frame = next_;
   // A frame that could not be decoded still used up its slot: the sequence gap shows it.
   frame.sequence = sequence_++;

@@ -92,9 +92,9 @@ class SimulatedCamera : public FrameSource {
   GrabStatus inject_frame_faults();
   // With a shared clock, after an outage: reads past the frames that fell due meanwhile.
   void skip_frames_due();
-  // Reads the next frame into next_ unless it is there already (looping at the end); false at
+  // Reads the next frame into next_ unless one is held there (looping at the end); false at
   // the end of a recording that does not loop.
-  bool read_ahead();
+  bool read_next();
 
   SimulatedCameraOptions options_;
   ReplayClock* clock_;
@@ -113,9 +113,9 @@ class SimulatedCamera : public FrameSource {
   std::int64_t position_ = 0;     // index of the next frame within the recording
   std::int64_t last_index_ = -1;  // the last video frame's place on the file's timeline
   std::uint64_t sequence_ = 0;    // next sequence number (slot), never reset by looping
-  Frame next_;                    // the next frame, read ahead of its deadline while read_ahead_
+  Frame next_;                    // a frame read but not delivered yet: held to its slot
   GrabStatus next_status_ = GrabStatus::kFrame;
-  bool read_ahead_ = false;
+  bool held_ = false;
   bool ended_ = false;
   std::int64_t start_ns_ = 0;         // real-time pacing: deadline of frame n = start + n * period
   std::int64_t frames_read_ = 0;      // fault injection: frames read from the recording

@@ -96,7 +96,7 @@ TEST_F(SimulatedCameraTest, RealTimePacingTakesTheRecordingsDuration) {
   while (camera.grab(frame, kLongTimeout) == GrabStatus::kFrame) ++delivered;
   const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(delivered, kFrames);
-  // Frame 0 is due at once, frame N-1 at (N-1)/fps; the end is reported right after it.
+  // Frame 0 is due at once, frame N-1 at (N-1)/fps; the end is reported one period later.
   EXPECT_NEAR(elapsed_s, kFrames / kFps, 0.3 * kFrames / kFps);
 }
 
