@@ -58,6 +58,41 @@ class V4l2Stream {
 
 namespace {
 
+/// Whether a frame of this field order holds two fields, captured half a frame period apart.
+bool holds_two_fields(std::uint32_t field) {
+  return field == V4L2_FIELD_INTERLACED || field == V4L2_FIELD_INTERLACED_TB || field == V4L2_FIELD_INTERLACED_BT ||
+         field == V4L2_FIELD_SEQ_TB || field == V4L2_FIELD_SEQ_BT;
+}
+
+/// The rows of a plane that hold a frame's first field in time (videodev2.h's field orders):
+/// every second row from the top (the bottom field first: from the second), or the first half
+/// of a frame whose fields are stored one after the other, older first. V4L2_FIELD_INTERLACED
+/// leaves the order to the video standard: the bottom field first in NTSC's 480 lines, the top
+/// one otherwise.
+cv::Mat first_field(const cv::Mat& plane, const V4l2Negotiated& negotiated) {
+  const auto every_second_row = [&plane](int first) {
+    return cv::Mat(plane.rows / 2, plane.cols, plane.type(), plane.data + first * plane.step[0], 2 * plane.step[0]);
+  };
+  switch (negotiated.field) {
+    case V4L2_FIELD_INTERLACED_TB: return every_second_row(0);
+    case V4L2_FIELD_INTERLACED_BT: return every_second_row(1);
+    case V4L2_FIELD_INTERLACED: return every_second_row(negotiated.height == 480 ? 1 : 0);
+    default: return plane.rowRange(0, plane.rows / 2);  // V4L2_FIELD_SEQ_TB, V4L2_FIELD_SEQ_BT
+  }
+}
+
+/// A field's rows (8-bit, one channel) at `frame`'s height, which is about twice theirs: each
+/// row, then its mean with the next one. Allocates nothing.
+void to_frame_height(const cv::Mat& field, cv::Mat& frame) {
+  for (int y = 0; y < frame.rows; ++y) {
+    const int row = std::min(y / 2, field.rows - 1), below = std::min(row + y % 2, field.rows - 1);
+    const std::uint8_t* a = field.ptr<std::uint8_t>(row);
+    const std::uint8_t* b = field.ptr<std::uint8_t>(below);
+    std::uint8_t* out = frame.ptr<std::uint8_t>(y);
+    for (int x = 0; x < frame.cols; ++x) out[x] = static_cast<std::uint8_t>((a[x] + b[x] + 1) / 2);
+  }
+}
+
 using detail::V4l2Stream;
 
 constexpr std::array kAutoOrder = {PixelFormat::kGrey, PixelFormat::kNv12, PixelFormat::kYuyv, PixelFormat::kMjpeg};
@@ -210,6 +245,7 @@ class StreamOpener {
     negotiated.height = pix.height;
     negotiated.bytes_per_line = std::max(pix.bytesperline, packed_bytes_per_line(negotiated.format, pix.width));
     negotiated.image_size = pix.sizeimage;
+    negotiated.field = pix.field;
   }
 
   /// Frame rate is the inverse of VIDIOC_S_PARM's timeperframe; the driver writes back the
@@ -379,6 +415,15 @@ void V4l2Camera::start_stream() {
   else
     cr_.release();
   if (negotiated_.format == PixelFormat::kMjpeg && !jpeg_) jpeg_ = std::make_unique<JpegDecoder>();
+  // A JPEG says itself whether it is interlaced (the decoder reads its first field).
+  if (holds_two_fields(negotiated_.field) && negotiated_.format != PixelFormat::kMjpeg) {
+    spdlog::info("{}: interlaced frames (V4L2 field order {}): each is read from its first field", path_,
+                 negotiated_.field);
+    field_luma_.create(height, width, CV_8UC1);
+  } else {
+    field_luma_.release();
+    field_cr_.release();
+  }
 }
 
 GrabStatus V4l2Camera::grab(Frame& frame, std::chrono::milliseconds timeout) {
@@ -418,13 +463,17 @@ GrabStatus V4l2Camera::deliver(const v4l2_buffer& buffer, Frame& frame) {
   const std::uint64_t sequence = sequence_for(buffer.sequence);
   const bool complete = !(buffer.flags & V4L2_BUF_FLAG_ERROR) && buffer.bytesused >= minimum_image_bytes(negotiated_) &&
                         buffer.bytesused <= stream_->buffers[buffer.index].length;
-  const cv::Mat gray = complete ? luma_of(stream_->buffers[buffer.index].data, buffer.bytesused) : cv::Mat();
+  cv::Mat gray = complete ? luma_of(stream_->buffers[buffer.index].data, buffer.bytesused) : cv::Mat();
   if (gray.empty()) {
     ++counters_.corrupt;
     return GrabStatus::kCorrupt;
   }
-  frame.gray = gray;
   frame.cr = cr_;
+  if (!field_luma_.empty()) {
+    read_first_field(gray);
+    frame.cr = field_cr_;
+  }
+  frame.gray = gray;
   frame.capture_time_ns = capture_time_ns(buffer);
   if (first_capture_ns_ < 0) first_capture_ns_ = frame.capture_time_ns;
   frame.sequence = sequence;
@@ -447,6 +496,19 @@ std::uint64_t V4l2Camera::sequence_for(std::uint32_t driver_sequence) {
   stream_started_ = true;
   expected_driver_sequence_ = driver_sequence + 1;
   return next_sequence_++;
+}
+
+void V4l2Camera::read_first_field(cv::Mat& gray) {
+  // The two fields were captured half a frame period apart: a moving mouth shows in both,
+  // combed together. Their first is read alone and brought back to the frame's height.
+  to_frame_height(first_field(gray, negotiated_), field_luma_);
+  gray = field_luma_;
+  if (cr_.empty()) {
+    field_cr_.release();
+    return;
+  }
+  field_cr_.create(cr_.size(), CV_8UC1);  // allocates once per stream
+  to_frame_height(first_field(cr_, negotiated_), field_cr_);
 }
 
 cv::Mat V4l2Camera::luma_of(const void* data, std::uint32_t bytes_used) {

@@ -6,8 +6,9 @@
 // opened non-blocking and grab() waits in poll() with the caller's timeout.
 //
 // Lifetime of frames: Frame::gray points into a mmapped driver buffer (GREY, NV12), into
-// a luma buffer the camera reuses (YUYV) or into a freshly decoded image (MJPEG); Frame::cr
-// (empty for GREY) into a Cr buffer the camera reuses. The driver buffer is handed back at the
+// a luma buffer the camera reuses (YUYV, and an interlaced frame's first field brought back to
+// full height) or into a freshly decoded image (MJPEG); Frame::cr (empty for GREY) into a Cr
+// buffer the camera reuses. The driver buffer is handed back at the
 // start of the next grab(), so a frame is valid until then.
 //
 // Disconnects: when the device goes away (ENODEV/EIO/ENXIO, or POLLERR) every resource is
@@ -82,6 +83,7 @@ struct V4l2Negotiated {
   unsigned height = 0;
   unsigned bytes_per_line = 0;
   unsigned image_size = 0;  // bytes per buffer the driver fills at most
+  std::uint32_t field = V4L2_FIELD_NONE;  // how a frame holds its fields (an analogue grabber's are interlaced)
   double frame_rate = 0;    // 0 if the driver does not report it
   unsigned buffer_count = 0;
 };
@@ -124,6 +126,7 @@ class V4l2Camera final : public FrameSource {
   GrabStatus deliver(const v4l2_buffer& buffer, Frame& frame);
   std::uint64_t sequence_for(std::uint32_t driver_sequence);
   cv::Mat luma_of(const void* data, std::uint32_t bytes_used);
+  void read_first_field(cv::Mat& gray);
 
   V4l2Options options_;
   SystemCalls& system_;
@@ -133,6 +136,7 @@ class V4l2Camera final : public FrameSource {
   std::unique_ptr<detail::V4l2Stream> stream_;
   cv::Mat luma_;  // YUYV's luma plane or MJPEG's decoded one, reused for every frame
   cv::Mat cr_;    // the Cr plane of YUYV, NV12 or MJPEG, the same; empty for GREY
+  cv::Mat field_luma_, field_cr_;      // an interlaced frame's first field at the frame's size
   std::unique_ptr<JpegDecoder> jpeg_;  // MJPEG streams
 
   // Sequence bookkeeping: Frame::sequence keeps counting across reconnects, and the driver

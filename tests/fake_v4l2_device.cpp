@@ -65,7 +65,7 @@ void FakeV4l2Device::adjust_format(v4l2_pix_format& pix) const {
       *std::ranges::min_element(config_.sizes, [&](cv::Size a, cv::Size b) { return distance(a) < distance(b); });
   pix.width = unsigned(nearest.width);
   pix.height = unsigned(nearest.height);
-  pix.field = V4L2_FIELD_NONE;
+  pix.field = config_.field;
   if (is_compressed(pix.pixelformat)) {
     pix.bytesperline = 0;
     pix.sizeimage = pix.width * pix.height;  // worst case for a JPEG of this size
@@ -160,7 +160,7 @@ int FakeV4l2Device::get_format(v4l2_format& format) {
   pix.height = state_.height;
   pix.bytesperline = state_.bytes_per_line;
   pix.sizeimage = state_.image_size;
-  pix.field = V4L2_FIELD_NONE;
+  pix.field = config_.field;
   return 0;
 }
 
@@ -239,7 +239,7 @@ void FakeV4l2Device::describe(unsigned index, v4l2_buffer& buffer) const {
   buffer.bytesused = source.bytes_used;
   buffer.sequence = source.sequence;
   buffer.timestamp = source.timestamp;
-  buffer.field = V4L2_FIELD_NONE;
+  buffer.field = config_.field;
   buffer.flags = source.flags | (source.state == BufferState::kQueued ? V4L2_BUF_FLAG_QUEUED : 0) |
                  (source.state == BufferState::kDone ? V4L2_BUF_FLAG_DONE : 0);
 }

@@ -47,6 +47,9 @@ class FakeV4l2Device final : public SystemCalls {
     std::optional<timeval> broken_timestamp;
     /// The controls it offers (VIDIOC_QUERYCTRL), each at its default_value after power-on.
     std::vector<v4l2_queryctrl> controls;
+    /// How its frames hold their fields, whatever is asked for: an analogue video grabber
+    /// answers V4L2_FIELD_INTERLACED (produce() takes the two fields already interleaved).
+    std::uint32_t field = V4L2_FIELD_NONE;
   };
 
   struct Event {

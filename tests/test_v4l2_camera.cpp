@@ -2,6 +2,7 @@
 // the real system calls fail cleanly.
 #include "drivers/clock.hpp"
 #include "drivers/v4l2_camera.hpp"
+#include "tests/allocation_counter.hpp"
 #include "tests/captured_log.hpp"
 #include "tests/fake_v4l2_device.hpp"
 
@@ -331,6 +332,54 @@ INSTANTIATE_TEST_SUITE_P(Formats, V4l2Luma,
                            return std::string(pixel_format_name(info.param.format)) + "_padding" +
                                   std::to_string(info.param.row_padding);
                          });
+
+TEST(V4l2Luma, AnInterlacedDriversFramesAreReadFromTheirFirstField) {
+  // An analogue grabber's frames hold two fields, captured 20 ms apart, in alternate rows (or
+  // one after the other): the first field in time (the top one, or the bottom one where the
+  // driver says so or, for V4L2_FIELD_INTERLACED, where the standard is NTSC's 480 lines)
+  // holds a picture, the other its negative. Read, each frame is the picture alone, at the
+  // frame's size, and a frame after the first allocates nothing.
+  struct Case {
+    std::uint32_t field;
+    cv::Size size;
+    int first_row;  // of the first field; -1: the fields one after the other
+  };
+  for (const Case c : {Case{V4L2_FIELD_INTERLACED_TB, {320, 240}, 0}, Case{V4L2_FIELD_INTERLACED_BT, {320, 240}, 1},
+                       Case{V4L2_FIELD_INTERLACED, {320, 240}, 0}, Case{V4L2_FIELD_INTERLACED, {640, 480}, 1},
+                       Case{V4L2_FIELD_SEQ_TB, {320, 240}, -1}}) {
+    for (const std::uint32_t fourcc : {V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_GREY, V4L2_PIX_FMT_NV12}) {
+      SCOPED_TRACE(::testing::Message() << "field " << c.field << ", " << c.size << ", format " << fourcc);
+      FakeV4l2Device::Config config;
+      config.formats = {fourcc};
+      config.sizes = {c.size};
+      config.field = c.field;
+      FakeV4l2Device device(config);
+      V4l2Camera camera(options_for(config), device);
+      cv::Mat picture(c.size, CV_8UC1);
+      for (int x = 0; x < c.size.width; ++x) picture.col(x).setTo(16 + 200 * x / c.size.width);
+      cv::Mat frame_rows = 255 - picture;
+      if (c.first_row < 0) picture.rowRange(0, c.size.height / 2).copyTo(frame_rows.rowRange(0, c.size.height / 2));
+      for (int y = c.first_row; y >= 0 && y < c.size.height; y += 2) picture.row(y).copyTo(frame_rows.row(y));
+      Frame frame;
+      ASSERT_TRUE(device.produce(frame_rows));
+      ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);  // the first allocates the field's planes
+      ASSERT_TRUE(device.produce(frame_rows));
+      lipdrive::test::count_allocations_on_this_thread(true);
+      const long before = lipdrive::test::allocation_count();
+      ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+      const long allocations = lipdrive::test::allocation_count() - before;
+      lipdrive::test::count_allocations_on_this_thread(false);
+      EXPECT_EQ(allocations, 0);
+      ASSERT_EQ(frame.gray.size(), c.size);
+      EXPECT_LE(cv::norm(frame.gray, picture, cv::NORM_INF), 1);  // the fields combed: 223
+      if (fourcc == V4L2_PIX_FMT_YUYV) {  // its Cr has a row per frame row (the fake's NV12 takes it from even rows)
+        const cv::Mat cr = expected_cr(picture, fourcc);
+        ASSERT_EQ(frame.cr.size(), cr.size());
+        EXPECT_LE(cv::norm(frame.cr, cr, cv::NORM_INF), 1);
+      }
+    }
+  }
+}
 
 TEST(V4l2Luma, GreyAndNv12AreViewsOfTheDriverBufferWithItsStride) {
   for (std::uint32_t fourcc : {V4L2_PIX_FMT_GREY, V4L2_PIX_FMT_NV12}) {
