@@ -338,7 +338,9 @@ TEST(ExpressionFit, LiveTheArkitWeightsWaitForTheIdentityOfTheFirstFrames) {
     float& most = gathering ? most_while_gathering : most_after;
     for (const float w : signals.arkit()) most = std::max(most, w);
     EXPECT_EQ(processor.identity_pending(), tracked < kIdentityFrames) << "after tracked frame " << tracked;
-    if (tracked == 1) EXPECT_EQ(processor.identity().size(), ict->num_components()) << "the provisional identity";
+    if (tracked == 1) {
+      EXPECT_EQ(processor.identity().size(), ict->num_components()) << "the provisional identity";
+    }
   }
   ASSERT_GT(tracked, 2 * kIdentityFrames);
   EXPECT_EQ(most_while_gathering, 0);

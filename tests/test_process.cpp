@@ -333,7 +333,9 @@ TEST_F(ProcessTest, ASideRecordingOnItsSideIsTurnedUprightFirst) {
   ASSERT_EQ(have.size(), want.size());
   for (std::size_t i = 0; i < want.size(); ++i) {
     ASSERT_EQ(std::isfinite(have[i]), std::isfinite(want[i])) << "row " << i;
-    if (std::isfinite(want[i])) EXPECT_EQ(have[i], want[i]) << "row " << i;
+    if (std::isfinite(want[i])) {
+      EXPECT_EQ(have[i], want[i]) << "row " << i;
+    }
   }
 }
 
