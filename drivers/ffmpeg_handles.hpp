@@ -136,12 +136,12 @@ class PictureConverter {
       return true;
     }
     const AVComponentDescriptor& v = desc->comp[2];
+    const Lines lines = first_field(picture);
     if ((desc->flags & (AV_PIX_FMT_FLAG_RGB | AV_PIX_FMT_FLAG_PAL)) == 0 && v.depth == 8 && v.shift == 0) {
-      // Y'CbCr with 8-bit Cr, planar (step 1) or interleaved with Cb (NV12: step 2).
-      // The rows of an interlaced picture's first field, each twice.
+      // Y'CbCr with 8-bit Cr, planar (step 1) or interleaved with Cb (NV12: step 2); of an
+      // interlaced picture, the rows of its first field, each twice.
       const int width = AV_CEIL_RSHIFT(picture.width, desc->log2_chroma_w);
       const int height = AV_CEIL_RSHIFT(picture.height, desc->log2_chroma_h);
-      const Lines lines = first_field(picture);
       const int rows = lines.field ? AV_CEIL_RSHIFT(lines.height, desc->log2_chroma_h) : height;
       cr.create(height, width, CV_8UC1);
       for (int y = 0; y < height; ++y) {
@@ -153,7 +153,6 @@ class PictureConverter {
       }
       return true;
     }
-    const Lines lines = first_field(picture);
     chroma_scaler_ =
         sws_getCachedContext(chroma_scaler_, picture.width, lines.height, without_range(format), picture.width,
                              picture.height, AV_PIX_FMT_YUV444P, SWS_POINT, nullptr, nullptr, nullptr);
