@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace lipdrive {
@@ -12,13 +15,35 @@ double interocular_distance(const Landmarks2D& landmarks) {
   return (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)).norm();
 }
 
+namespace {
+
+/// How far landmark i lies inside the picture's edges (negative beyond them).
+double inside(const Landmarks2D& landmarks, int i, int image_width, int image_height) {
+  return std::min(
+      {landmarks(0, i), image_width - 1 - landmarks(0, i), landmarks(1, i), image_height - 1 - landmarks(1, i)});
+}
+
+}  // namespace
+
+bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height) {
+  for (int i = ibug::kJawFirst; i <= ibug::kJawLast; ++i)
+    if (inside(landmarks, i, image_width, image_height) < 0) return true;
+  return false;
+}
+
 bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_height, double min_interocular_px) {
   if (!landmarks.allFinite()) return false;
-  if ((landmarks.row(0).array() < 0).any() || (landmarks.row(0).array() > image_width - 1).any() ||
-      (landmarks.row(1).array() < 0).any() || (landmarks.row(1).array() > image_height - 1).any())
-    return false;
   const double iod = interocular_distance(landmarks);
   if (iod < min_interocular_px || iod > image_width) return false;
+  // In the picture: the brows, eyes, nose and mouth; the jaw line up to kJawOffPicture beyond
+  // it, and then the mouth kMouthInCutPicture inside it.
+  for (int i = 0; i < kNumLandmarks; ++i) {
+    const double margin = i <= ibug::kJawLast ? kJawOffPicture * iod : 0;
+    if (inside(landmarks, i, image_width, image_height) < -margin) return false;
+  }
+  if (jaw_off_picture(landmarks, image_width, image_height))
+    for (int i = ibug::kMouthCornerRight; i < kNumLandmarks; ++i)
+      if (inside(landmarks, i, image_width, image_height) < kMouthInCutPicture * iod) return false;
 
   // Face axes from the eyes, so a tilted head is judged in its own frame: "across" points
   // from the right eye to the left eye (image right for a frontal face), "down" is
@@ -57,21 +82,31 @@ bool FaceTracker::acquire(const cv::Mat& gray, Landmarks2D& landmarks) {
 bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale, const cv::Mat& gray,
                                 Landmarks2D& landmarks) {
   // One performer per camera: the largest face is theirs, unless its landmarks fail the
-  // checks (a face cut by the image border); then the next largest. The boxes of an image
-  // `scale` times the size of `gray` are scaled back to it.
+  // checks (a face cut by the image border); then the next largest. A face whose jaw the
+  // picture's edge cuts is taken only when no whole face passes: in a photograph it is a
+  // bystander at the edge, larger than the subject. The boxes of an image `scale` times the
+  // size of `gray` are scaled back to it.
+  std::optional<std::pair<FaceBox, Landmarks2D>> cut_face;
   for (const FaceBox& face : faces) {
     box_ = {std::lround(face.left / scale), std::lround(face.top / scale), std::lround(face.right / scale),
             std::lround(face.bottom / scale)};
     predictor_.predict_median(gray, box_, landmarks);  // a detector's box is only roughly placed
-    if (accept(gray, landmarks, true)) return true;
+    if (!looks_like_a_face(gray, landmarks)) continue;
+    if (!jaw_off_picture(landmarks, gray.cols, gray.rows)) return accept(gray, landmarks, true);
+    if (!cut_face) cut_face.emplace(box_, landmarks);
   }
-  return false;
+  if (!cut_face) return false;
+  std::tie(box_, landmarks) = *cut_face;
+  return accept(gray, landmarks, true);
+}
+
+bool FaceTracker::looks_like_a_face(const cv::Mat& gray, const Landmarks2D& landmarks) const {
+  return predictor_.feature_contrast() >= settings_.min_feature_contrast &&
+         plausible_face(landmarks, gray.cols, gray.rows, settings_.min_interocular_px);
 }
 
 bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring) {
-  if (predictor_.feature_contrast() < settings_.min_feature_contrast ||
-      !plausible_face(landmarks, gray.cols, gray.rows, settings_.min_interocular_px))
-    return false;
+  if (!acquiring && !looks_like_a_face(gray, landmarks)) return false;
   // The detector found this face: its look is the reference for the frames tracked after it.
   // A face too near the image border for the template is taken once it has moved in.
   if (acquiring || !face_.captured()) {

@@ -10,9 +10,10 @@
 // Every tracked frame is validated as the face that was acquired; the predictor returns 68
 // points wherever its box is, so after a cut, a face leaving the frame or a hand over the
 // lens it would follow whatever is there. The track is dropped when the landmarks are
-// implausible (outside the image, a degenerate face size or aspect, eyes/nose/mouth out of
-// order), when the predictor's feature pixels have no contrast (a blank or covered frame),
-// when the upper face around them no longer looks like the one the detector acquired
+// implausible (outside the image, but for a jaw line the picture's edge cuts a little; a
+// degenerate face size or aspect; eyes/nose/mouth out of order), when the predictor's feature
+// pixels have no contrast (a blank or covered frame), when the upper face around them no
+// longer looks like the one the detector acquired
 // (core/face_check.hpp: normalised correlation of a luma grid, a few microseconds), when the
 // caller's 3DMM fit cannot explain them (check_fit), or when the lips turn much darker or
 // brighter than the face (check_mouth: something over the mouth). A frame that fails the
@@ -71,8 +72,21 @@ enum class TrackStatus {
   kNoFace,    // no face: landmarks are not valid
 };
 
+/// How far the jaw line (landmarks 0-16) may lie beyond the picture's edge, in inter-ocular
+/// distances. A camera framed close cuts the chin when the mouth opens wide, or the side of the
+/// jaw when the head turns; the predictor then puts the cut jaw at the edge or just beyond it
+/// (docs/method.md 1, "A jaw the picture cuts"). Up to this much beyond, the mouth is as
+/// accurate as in the whole picture; the rest of the face must be inside.
+inline constexpr double kJawOffPicture = 0.07;
+/// With the jaw line beyond the edge, how far inside it the mouth (landmarks 48-67) must be,
+/// in inter-ocular distances: an edge nearer the lips than this misplaces them.
+inline constexpr double kMouthInCutPicture = 0.15;
+
 /// Outer eye corner to outer eye corner (36-45), the usual face size for normalising errors.
 double interocular_distance(const Landmarks2D& landmarks);
+
+/// Whether a point of the jaw line (0-16) lies beyond the picture's edge.
+bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height);
 
 /// The geometric sanity checks the tracker applies to every frame's landmarks.
 bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_height, double min_interocular_px);
@@ -126,6 +140,10 @@ class FaceTracker {
  private:
   bool acquire(const cv::Mat& gray, Landmarks2D& landmarks);
   bool acquire_among(const std::vector<FaceBox>& faces, double scale, const cv::Mat& gray, Landmarks2D& landmarks);
+  /// The last prediction's feature pixels have contrast and its landmarks a face's layout.
+  bool looks_like_a_face(const cv::Mat& gray, const Landmarks2D& landmarks) const;
+  /// Whether the landmarks are the face: on acquisition (already checked) its look becomes
+  /// the reference; while tracking they must look like a face and like that reference.
   bool accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring);
 
   TrackerSettings settings_;

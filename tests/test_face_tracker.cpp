@@ -35,6 +35,7 @@
 #include <limits>
 #include <span>
 #include <sstream>
+#include <tuple>
 #include <vector>
 
 namespace lipdrive {
@@ -567,6 +568,74 @@ TEST(FaceTracker, ACameraWhoseFaceIsLargeIsSearchedInAReducedFrame) {
   EXPECT_EQ(reduced.track(face, landmarks), TrackStatus::kAcquired) << "a still is searched at its own size";
 }
 
+// A head-mounted camera framed close cuts the chin when the mouth opens wide, or the side of
+// the jaw when the head turns: the face is still there and the mouth in full view. Cut 0.1
+// inter-ocular distances into the jaw line (the picture's bottom edge above the chin, its left
+// edge inside the first jaw point), the face is acquired and tracked with the mouth where it
+// is in the whole picture; cut through the mouth, it is not.
+TEST(FaceTracker, AFaceWhoseJawTheEdgeCutsIsStillTracked) {
+  std::vector<cv::Mat> faces = {generated_face()};
+  if (faces.front().empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  if (const auto grid = grid_frames("bbaf2n"); !grid.empty()) faces.insert(faces.end(), {grid[0], grid[37]});
+  for (std::size_t n = 0; n < faces.size(); ++n) {
+    // At twice GRID's size, as a close camera sees it.
+    cv::Mat face;
+    cv::resize(faces[n], face, {}, n == 0 ? 1.0 : 2.0, n == 0 ? 1.0 : 2.0, cv::INTER_LINEAR);
+    FaceTracker whole(test::shared_predictor());
+    Landmarks2D expected, landmarks;
+    ASSERT_EQ(whole.track(face, expected), TrackStatus::kAcquired) << "face " << n;
+    const double iod = interocular_distance(expected);
+    const auto mouth_error = [&](const Landmarks2D& found, double dx) {
+      Landmarks2D moved = expected;
+      moved.row(0).array() -= dx;
+      return (found - moved).rightCols(kNumLandmarks - ibug::kMouthCornerRight).colwise().norm().mean() / iod;
+    };
+    const int bottom = static_cast<int>(expected(1, ibug::kChin) - 0.1 * iod);
+    const int left = static_cast<int>(expected(0, ibug::kJawFirst) + 0.1 * iod);
+    const cv::Mat chin_cut = face.rowRange(0, bottom).clone(), side_cut = face.colRange(left, face.cols).clone();
+    for (const auto& [cut, dx, name] : {std::tuple{chin_cut, 0, "chin"}, std::tuple{side_cut, left, "side"}}) {
+      FaceTracker tracker(test::shared_predictor());
+      ASSERT_EQ(tracker.track(cut, landmarks), TrackStatus::kAcquired) << name << " cut, face " << n;
+      for (int f = 0; f < 5; ++f)
+        ASSERT_EQ(tracker.track(cut, landmarks), TrackStatus::kTracking) << name << " cut, face " << n;
+      EXPECT_LT(mouth_error(landmarks, dx), 0.02) << name << " cut, face " << n;
+    }
+    const int mouth = static_cast<int>(0.5 * (expected(1, ibug::kInnerLipTop) + expected(1, ibug::kInnerLipBottom)));
+    FaceTracker tracker(test::shared_predictor());
+    EXPECT_EQ(tracker.track(face.rowRange(0, mouth), landmarks), TrackStatus::kNoFace)
+        << "cut through the mouth, face " << n;
+  }
+}
+
+// In a photograph the face the edge cuts is a bystander's, often larger than the subject's:
+// the whole face is taken first. The generated face a quarter larger, its jaw cut by the left
+// edge, beside the face itself, whole.
+TEST(FaceTracker, AWholeFaceIsTakenBeforeALargerOneTheEdgeCuts) {
+  const cv::Mat face = generated_face();
+  if (face.empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  cv::Mat larger;
+  cv::resize(face, larger, {}, 1.25, 1.25, cv::INTER_LINEAR);
+  FaceTracker tracker(test::shared_predictor());
+  Landmarks2D whole, cut_landmarks, landmarks;
+  ASSERT_EQ(tracker.track(face, whole), TrackStatus::kAcquired);
+  tracker.reset(FaceTracker::Next::kStill);
+  ASSERT_EQ(tracker.track(larger, cut_landmarks), TrackStatus::kAcquired);
+  const int left = static_cast<int>(cut_landmarks(0, ibug::kJawFirst) + 0.05 * interocular_distance(cut_landmarks));
+  cv::Mat picture(larger.rows, larger.cols - left + face.cols, CV_8UC1, cv::Scalar(128));
+  larger.colRange(left, larger.cols).copyTo(picture.colRange(0, larger.cols - left));
+  face.copyTo(picture(cv::Rect(larger.cols - left, 0, face.cols, face.rows)));
+  ASSERT_EQ(detect(picture).size(), 2u) << "the detector should find both faces";
+
+  tracker.reset(FaceTracker::Next::kStill);
+  ASSERT_EQ(tracker.track(picture, landmarks), TrackStatus::kAcquired);
+  Landmarks2D expected = whole;
+  expected.row(0).array() += larger.cols - left;
+  EXPECT_LT((landmarks - expected).colwise().norm().mean(), 0.05 * interocular_distance(whole));
+  // Alone, the cut face is taken.
+  tracker.reset(FaceTracker::Next::kStill);
+  EXPECT_EQ(tracker.track(picture.colRange(0, larger.cols - left).clone(), landmarks), TrackStatus::kAcquired);
+}
+
 TEST(FaceTracker, APoorFitDropsTheTrack) {
   LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();
@@ -593,8 +662,15 @@ TEST(FaceTracker, ImplausibleLandmarksAreRejected) {
   Landmarks2D upside_down = landmarks;
   upside_down.row(1) = (face.rows - 1 - landmarks.row(1).array()).matrix();
   EXPECT_FALSE(plausible_face(upside_down, face.cols, face.rows, 12));
+  // Everything but the jaw line inside the picture; the jaw line may run off it a little.
+  const double iod = interocular_distance(landmarks);
   Landmarks2D outside = landmarks;
-  outside(0, 0) = -3;
+  outside(0, ibug::kMouthCornerRight) = -1;
+  EXPECT_FALSE(plausible_face(outside, face.cols, face.rows, 12));
+  outside = landmarks;
+  outside(0, ibug::kJawFirst) = -0.05 * iod;
+  EXPECT_TRUE(plausible_face(outside, face.cols, face.rows, 12));
+  outside(0, ibug::kJawFirst) = -0.1 * iod;
   EXPECT_FALSE(plausible_face(outside, face.cols, face.rows, 12));
   Landmarks2D tiny = landmarks / 50.0;
   EXPECT_FALSE(plausible_face(tiny, face.cols, face.rows, 12));
