@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -81,22 +80,29 @@ bool FaceTracker::acquire(const cv::Mat& gray, Landmarks2D& landmarks) {
 
 bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale, const cv::Mat& gray,
                                 Landmarks2D& landmarks) {
-  // One performer per camera: the largest face is theirs, unless its landmarks fail the
-  // checks (a face cut by the image border); then the next largest. A face whose jaw the
-  // picture's edge cuts is taken only when no whole face passes: in a photograph it is a
-  // bystander at the edge, larger than the subject. The boxes of an image `scale` times the
-  // size of `gray` are scaled back to it.
-  std::optional<std::pair<FaceBox, Landmarks2D>> cut_face;
+  // One performer per camera: of the faces whose landmarks pass the checks, the largest is
+  // theirs, measured between its outer eye corners (the detector's boxes come in steps of a
+  // fifth, so faces of about one size get the same box). A face whose jaw the picture's edge
+  // cuts is taken only when no whole face passes: in a photograph it is a bystander at the
+  // edge, larger than the subject. The boxes of an image `scale` times the size of `gray` are
+  // scaled back to it.
+  struct Candidate {
+    FaceBox box;
+    Landmarks2D landmarks;
+    std::pair<bool, double> rank;  // whole, size
+  };
+  std::optional<Candidate> best;
   for (const FaceBox& face : faces) {
-    box_ = {std::lround(face.left / scale), std::lround(face.top / scale), std::lround(face.right / scale),
-            std::lround(face.bottom / scale)};
-    predictor_.predict_median(gray, box_, landmarks);  // a detector's box is only roughly placed
+    const FaceBox box = {std::lround(face.left / scale), std::lround(face.top / scale), std::lround(face.right / scale),
+                         std::lround(face.bottom / scale)};
+    predictor_.predict_median(gray, box, landmarks);  // a detector's box is only roughly placed
     if (!looks_like_a_face(gray, landmarks)) continue;
-    if (!jaw_off_picture(landmarks, gray.cols, gray.rows)) return accept(gray, landmarks, true);
-    if (!cut_face) cut_face.emplace(box_, landmarks);
+    const std::pair rank(!jaw_off_picture(landmarks, gray.cols, gray.rows), interocular_distance(landmarks));
+    if (!best || rank > best->rank) best = Candidate{box, landmarks, rank};
   }
-  if (!cut_face) return false;
-  std::tie(box_, landmarks) = *cut_face;
+  if (!best) return false;
+  box_ = best->box;
+  landmarks = best->landmarks;
   return accept(gray, landmarks, true);
 }
 
