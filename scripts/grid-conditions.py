@@ -86,6 +86,14 @@ def figure(value, decimals):
     return "untracked" if value is None else f"{value:.{decimals}f}"
 
 
+def misses_a_target(closure):
+    """Whether a clip's opening, final-silence median or jitter misses its bound; a figure
+    without a tracked frame to take it from is null in the JSON, and a miss."""
+    bounds = {"opening": lambda v: v >= 0.5, "silence_median": lambda v: v <= 0.15,
+              "silence_jitter": lambda v: v <= 0.02}
+    return any(closure[key] is None or not within(closure[key]) for key, within in bounds.items())
+
+
 print("| condition | half | closures seen | clips missing opening / silence / jitter |")
 print("|---|---|---|---|")
 for name in args.conditions:
@@ -95,11 +103,7 @@ for name in args.conditions:
         seen = sum(c["closures_seen"] for _, c in results)
         words = sum(c["bilabial_words"] for _, c in results)
         missed = [f'{stem} "{w["word"]}"' for stem, c in results for w in c["words"] if not w["closed"]]
-        # A figure without a tracked frame to take it from is null in the JSON: a miss.
         failing = [f'{stem} ({figure(c["opening"], 2)}, {figure(c["silence_median"], 2)}, '
-                   f'{figure(c["silence_jitter"], 3)})' for stem, c in results
-                   if not (c["opening"] is not None and c["opening"] >= 0.5 and c["silence_median"] is not None and
-                           c["silence_median"] <= 0.15 and c["silence_jitter"] is not None and
-                           c["silence_jitter"] <= 0.02)]
+                   f'{figure(c["silence_jitter"], 3)})' for stem, c in results if misses_a_target(c)]
         print(f"| {name} | {half} | {seen}/{words}{' (' + ', '.join(missed) + ')' if missed else ''} | "
               f"{len(failing)}/{len(results)}{': ' + ', '.join(failing) if failing else ''} |", flush=True)
