@@ -36,13 +36,14 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
   if (iod < min_interocular_px || iod > image_width) return false;
   // In the picture: the brows, eyes, nose and mouth; the jaw line up to kJawOffPicture beyond
   // it, and then the mouth kMouthInCutPicture inside it.
+  bool jaw_cut = false;
   for (int i = 0; i < kNumLandmarks; ++i) {
-    const double margin = i <= ibug::kJawLast ? kJawOffPicture * iod : 0;
-    if (inside(landmarks, i, image_width, image_height) < -margin) return false;
+    const double distance = inside(landmarks, i, image_width, image_height);
+    if (distance < (i <= ibug::kJawLast ? -kJawOffPicture * iod : 0)) return false;
+    jaw_cut = jaw_cut || distance < 0;
   }
-  if (jaw_off_picture(landmarks, image_width, image_height))
-    for (int i = ibug::kMouthCornerRight; i < kNumLandmarks; ++i)
-      if (inside(landmarks, i, image_width, image_height) < kMouthInCutPicture * iod) return false;
+  for (int i = ibug::kMouthCornerRight; jaw_cut && i < kNumLandmarks; ++i)
+    if (inside(landmarks, i, image_width, image_height) < kMouthInCutPicture * iod) return false;
 
   // Face axes from the eyes, so a tilted head is judged in its own frame: "across" points
   // from the right eye to the left eye (image right for a frontal face), "down" is

@@ -61,6 +61,14 @@ std::vector<cv::Mat> grid_frames(const char* clip) {
   return std::filesystem::exists(path) ? read_gray_frames(path) : std::vector<cv::Mat>{};
 }
 
+// Two pictures side by side on grey, their tops aligned.
+cv::Mat side_by_side(const cv::Mat& left, const cv::Mat& right) {
+  cv::Mat picture(std::max(left.rows, right.rows), left.cols + right.cols, CV_8UC1, cv::Scalar(128));
+  left.copyTo(picture(cv::Rect(0, 0, left.cols, left.rows)));
+  right.copyTo(picture(cv::Rect(left.cols, 0, right.cols, right.rows)));
+  return picture;
+}
+
 // A face image the build makes itself: the generated talking-face fixture's first frame,
 // or the portrait it is made from.
 cv::Mat generated_face() {
@@ -621,19 +629,18 @@ TEST(FaceTracker, AWholeFaceIsTakenBeforeALargerOneTheEdgeCuts) {
   tracker.reset(FaceTracker::Next::kStill);
   ASSERT_EQ(tracker.track(larger, cut_landmarks), TrackStatus::kAcquired);
   const int left = static_cast<int>(cut_landmarks(0, ibug::kJawFirst) + 0.05 * interocular_distance(cut_landmarks));
-  cv::Mat picture(larger.rows, larger.cols - left + face.cols, CV_8UC1, cv::Scalar(128));
-  larger.colRange(left, larger.cols).copyTo(picture.colRange(0, larger.cols - left));
-  face.copyTo(picture(cv::Rect(larger.cols - left, 0, face.cols, face.rows)));
+  const cv::Mat cut = larger.colRange(left, larger.cols).clone();
+  const cv::Mat picture = side_by_side(cut, face);
   ASSERT_EQ(detect(picture).size(), 2u) << "the detector should find both faces";
 
   tracker.reset(FaceTracker::Next::kStill);
   ASSERT_EQ(tracker.track(picture, landmarks), TrackStatus::kAcquired);
   Landmarks2D expected = whole;
-  expected.row(0).array() += larger.cols - left;
+  expected.row(0).array() += cut.cols;
   EXPECT_LT((landmarks - expected).colwise().norm().mean(), 0.05 * interocular_distance(whole));
   // Alone, the cut face is taken.
   tracker.reset(FaceTracker::Next::kStill);
-  EXPECT_EQ(tracker.track(picture.colRange(0, larger.cols - left).clone(), landmarks), TrackStatus::kAcquired);
+  EXPECT_EQ(tracker.track(cut, landmarks), TrackStatus::kAcquired);
 }
 
 // Two faces of about one size get the same detector box (its sizes come in steps of a fifth):
@@ -648,10 +655,8 @@ TEST(FaceTracker, TheLargerOfTwoFacesOfAboutOneSizeIsTaken) {
   Landmarks2D expected, landmarks;
   ASSERT_EQ(tracker.track(larger, expected), TrackStatus::kAcquired);
   for (const bool larger_left : {true, false}) {
-    cv::Mat picture(larger.rows, larger.cols + face.cols, CV_8UC1, cv::Scalar(128));
+    const cv::Mat picture = larger_left ? side_by_side(larger, face) : side_by_side(face, larger);
     const int larger_x = larger_left ? 0 : face.cols;
-    larger.copyTo(picture(cv::Rect(larger_x, 0, larger.cols, larger.rows)));
-    face.copyTo(picture(cv::Rect(larger_left ? larger.cols : 0, 0, face.cols, face.rows)));
     ASSERT_EQ(detect(picture).size(), 2u) << "the detector should find both faces";
     tracker.reset(FaceTracker::Next::kStill);
     ASSERT_EQ(tracker.track(picture, landmarks), TrackStatus::kAcquired);
