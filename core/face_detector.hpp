@@ -18,9 +18,13 @@
 namespace lipdrive {
 
 /// A face box in image pixels with inclusive corners, the convention of dlib::rectangle
-/// (a 100 px wide box has right = left + 99).
+/// (a 100 px wide box has right = left + 99), turned by `roll` radians about its centre (from
+/// the image's x axis towards its y axis, so clockwise on the screen). The detector's boxes are
+/// upright; the shape predictor places its mean shape in a turned one as in an upright box of
+/// the picture turned back (docs/method.md 1, "A rolled head").
 struct FaceBox {
   long left = 0, top = 0, right = -1, bottom = -1;
+  double roll = 0;
 
   long width() const { return right - left + 1; }
   long height() const { return bottom - top + 1; }

@@ -3,9 +3,10 @@
 // dlib's HOG frontal face detector runs only to acquire a face (first frame, or after the
 // track was lost): it costs tens of milliseconds and allocates. While tracking, the box
 // comes from the previous frame's landmarks (the camera moves with the head, so the face
-// stays in place) and only the shape predictor runs, which allocates nothing. A detector's
-// box is only roughly placed, so an acquired face's landmarks are the median of seven
-// predictions from boxes around it (ShapePredictor::predict_median, docs/method.md 1).
+// stays in place; the box turns with a head rolled beyond kUprightRoll) and only the shape
+// predictor runs, which allocates nothing. A detector's box is only roughly placed, so an
+// acquired face's landmarks are the median of seven predictions from boxes around it
+// (ShapePredictor::predict_median, docs/method.md 1).
 //
 // Every tracked frame is validated as the face that was acquired; the predictor returns 68
 // points wherever its box is, so after a cut, a face leaving the frame or a hand over the
@@ -32,6 +33,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include <memory>
+#include <numbers>
 
 namespace lipdrive {
 
@@ -81,6 +83,13 @@ inline constexpr double kJawOffPicture = 0.07;
 /// With the jaw line beyond the edge, how far inside it the mouth (landmarks 48-67) must be,
 /// in inter-ocular distances: an edge nearer the lips than this misplaces them.
 inline constexpr double kMouthInCutPicture = 0.15;
+
+/// How far a face may roll in the picture (radians either way) for the shape predictor to
+/// find its landmarks from an upright box, as dlib's detector gives and its training used: at
+/// 10 and 20 degrees the mouth lies within 0.01 inter-ocular distances of where it is in the
+/// same picture upright, at 30 degrees 0.10 off. A face rolled further is predicted in a box
+/// turned by the excess (docs/method.md 1, "A rolled head").
+inline constexpr double kUprightRoll = 10 * std::numbers::pi / 180;
 
 /// Outer eye corner to outer eye corner (36-45), the usual face size for normalising errors.
 double interocular_distance(const Landmarks2D& landmarks);

@@ -356,6 +356,32 @@ std::span<const T> view_of(std::span<const std::uint8_t> bytes, std::size_t offs
   return {reinterpret_cast<const T*>(bytes.data() + offset), count};
 }
 
+/// dlib's unnormalizing_tform: box units (the box's top left corner 0, its bottom right 1) to
+/// image pixels, and then, for a turned box, the turn about the box's centre. An upright box
+/// computes exactly what dlib does (the turn is skipped, not multiplied by 1).
+class BoxToImage {
+ public:
+  explicit BoxToImage(const FaceBox& box)
+      : width_(static_cast<double>(box.right - box.left)),
+        height_(static_cast<double>(box.bottom - box.top)),
+        left_(static_cast<double>(box.left)),
+        top_(static_cast<double>(box.top)),
+        centre_(0.5 * static_cast<double>(box.left + box.right), 0.5 * static_cast<double>(box.top + box.bottom)),
+        turned_(box.roll != 0),
+        turn_(Eigen::Rotation2Dd(box.roll).toRotationMatrix()) {}
+
+  Eigen::Vector2d operator()(double u, double v) const {
+    const Eigen::Vector2d upright(width_ * u + left_, height_ * v + top_);
+    return turned_ ? Eigen::Vector2d(centre_ + turn_ * (upright - centre_)) : upright;
+  }
+
+ private:
+  double width_, height_, left_, top_;
+  Eigen::Vector2d centre_;
+  bool turned_;
+  Eigen::Matrix2d turn_;
+};
+
 }  // namespace
 
 ShapePredictorData ShapePredictorData::read_dlib(std::istream& in, FaceDetector (*detector)()) {
@@ -500,29 +526,44 @@ ShapePredictorData ShapePredictorData::read_compact(std::span<const std::uint8_t
   return d;
 }
 
-FaceBox ShapePredictorData::box_for(const Landmarks2D& landmarks) const {
+FaceBox ShapePredictorData::box_for(const Landmarks2D& landmarks, double upright) const {
+  // The face's roll is the turn of the similarity from the mean shape to the landmarks, least
+  // squares (Umeyama, "Least-squares estimation of transformation parameters between two
+  // point patterns", PAMI 1991, in two dimensions): atan2(sum s x t, sum s.t) over the centred
+  // points. With the box's turn fixed, the least-squares scale is the centred landmarks'
+  // projection on the turned mean shape, and the mean shape's centroid meets theirs.
   constexpr int kFirst = ibug::kRightBrowFirst, kLast = 47;  // brows, nose, eyes: not moved by speech
   constexpr int kCount = kLast - kFirst + 1;
+  const auto mean_point = [&](int i) { return Eigen::Vector2d(initial_shape_[2 * i], initial_shape_[2 * i + 1]); };
   Eigen::Vector2d mean_shape = Eigen::Vector2d::Zero(), mean_image = Eigen::Vector2d::Zero();
   for (int i = kFirst; i <= kLast; ++i) {
-    mean_shape += Eigen::Vector2d(initial_shape_[2 * i], initial_shape_[2 * i + 1]);
+    mean_shape += mean_point(i);
     mean_image += landmarks.col(i);
   }
   mean_shape /= kCount;
   mean_image /= kCount;
-  double cross = 0, norm = 0;
+  double dot = 0, cross = 0, norm = 0;
   for (int i = kFirst; i <= kLast; ++i) {
-    const Eigen::Vector2d s = Eigen::Vector2d(initial_shape_[2 * i], initial_shape_[2 * i + 1]) - mean_shape;
-    cross += s.dot(landmarks.col(i) - mean_image);
+    const Eigen::Vector2d s = mean_point(i) - mean_shape, t = landmarks.col(i) - mean_image;
+    dot += s.dot(t);
+    cross += s.x() * t.y() - s.y() * t.x();
     norm += s.squaredNorm();
   }
-  const double size = cross / norm;  // right - left of the box (= bottom - top: dlib boxes are square)
-  const Eigen::Vector2d top_left = mean_image - size * mean_shape;
+  const double face_roll = std::atan2(cross, dot);
+  const double roll = std::copysign(std::max(0.0, std::abs(face_roll) - upright), face_roll);
+  const Eigen::Matrix2d turn = Eigen::Rotation2Dd(roll).toRotationMatrix();
+  // right - left of the box (= bottom - top: dlib boxes are square)
+  const double size = roll == 0 ? dot / norm : (dot * turn(0, 0) + cross * turn(1, 0)) / norm;
+  const Eigen::Vector2d top_left =
+      roll == 0 ? Eigen::Vector2d(mean_image - size * mean_shape)
+                : Eigen::Vector2d(mean_image - turn * (size * (mean_shape - Eigen::Vector2d(0.5, 0.5))) -
+                                  Eigen::Vector2d(0.5 * size, 0.5 * size));
   FaceBox box;
   box.left = std::lround(top_left.x());
   box.top = std::lround(top_left.y());
   box.right = box.left + std::lround(size);
   box.bottom = box.top + std::lround(size);
+  box.roll = roll;
   return box;
 }
 
@@ -539,8 +580,7 @@ ShapePredictor::ShapePredictor(std::shared_ptr<const ShapePredictorData> data)
 void ShapePredictor::read_feature_pixels(const cv::Mat& gray, const FaceBox& box, int cascade) {
   const ShapePredictorData& d = *data_;
   const Eigen::Matrix2f tform = similarity_linear_part(d.initial_shape_.data(), shape_.data());
-  const double box_w = static_cast<double>(box.right - box.left);
-  const double box_h = static_cast<double>(box.bottom - box.top);
+  const BoxToImage to_image(box);
   const int first = d.cascade_first_feature_[cascade];
   const int count = d.cascade_first_feature_[cascade + 1] - first;
   for (int i = 0; i < count; ++i) {
@@ -549,9 +589,10 @@ void ShapePredictor::read_feature_pixels(const cv::Mat& gray, const FaceBox& box
     const int a = d.anchor_[f];
     const float u = tform(0, 0) * dx + tform(0, 1) * dy + shape_[2 * a];
     const float v = tform(1, 0) * dx + tform(1, 1) * dy + shape_[2 * a + 1];
+    const Eigen::Vector2d p = to_image(u, v);
     // Compared before the conversion to an integer, which only an in-range value may take.
-    const double x = std::floor(box_w * u + static_cast<double>(box.left) + 0.5);
-    const double y = std::floor(box_h * v + static_cast<double>(box.top) + 0.5);
+    const double x = std::floor(p.x() + 0.5);
+    const double y = std::floor(p.y() + 0.5);
     const bool inside = x >= 0 && y >= 0 && x < gray.cols && y < gray.rows;
     feature_pixels_[i] =
         inside ? static_cast<float>(gray.ptr<std::uint8_t>(static_cast<int>(y))[static_cast<int>(x)]) : 0.0f;
@@ -605,12 +646,8 @@ void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2
       for (int k = 0; k < kShapeSize; ++k) shape_[k] += increments.increment(k);
     }
   }
-  const double box_w = static_cast<double>(box.right - box.left);
-  const double box_h = static_cast<double>(box.bottom - box.top);
-  for (int i = 0; i < kNumLandmarks; ++i) {
-    out(0, i) = box_w * shape_[2 * i] + static_cast<double>(box.left);
-    out(1, i) = box_h * shape_[2 * i + 1] + static_cast<double>(box.top);
-  }
+  const BoxToImage to_image(box);
+  for (int i = 0; i < kNumLandmarks; ++i) out.col(i) = to_image(shape_[2 * i], shape_[2 * i + 1]);
 }
 
 void ShapePredictor::warm() const {
@@ -639,12 +676,14 @@ void ShapePredictor::predict_median(const cv::Mat& gray, const FaceBox& box, Lan
   const double width = static_cast<double>(box.width()), height = static_cast<double>(box.height());
   const double centre_x = 0.5 * static_cast<double>(box.left + box.right);
   const double centre_y = 0.5 * static_cast<double>(box.top + box.bottom);
+  const double cos_roll = std::cos(box.roll), sin_roll = std::sin(box.roll);
   for (std::size_t k = 0; k < kAround.size(); ++k) {
-    const auto [scale, across, down] = kAround[k];
-    const double x = centre_x + across * width, y = centre_y + down * height;
+    const auto [scale, across, down] = kAround[k];  // along the box's own axes
+    const double x = centre_x + cos_roll * across * width - sin_roll * down * height;
+    const double y = centre_y + sin_roll * across * width + cos_roll * down * height;
     const double half_w = 0.5 * scale * width, half_h = 0.5 * scale * height;
     const FaceBox around{std::lround(x - half_w), std::lround(y - half_h), std::lround(x + half_w),
-                         std::lround(y + half_h)};
+                         std::lround(y + half_h), box.roll};
     predict(gray, around, starts_[k]);
   }
   predict(gray, box, starts_[kStarts - 1]);  // last: feature_contrast() and last_leaves() are the box's

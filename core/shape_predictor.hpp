@@ -108,8 +108,10 @@ class ShapePredictorData {
   /// The box in which the predictor's mean shape best matches `landmarks` (least squares
   /// over scale and translation; rigid landmarks 17..47 only, so speech does not move it):
   /// how a tracker turns the last frame's landmarks into this frame's box, consistent
-  /// with the detector boxes the predictor was trained on.
-  FaceBox box_for(const Landmarks2D& landmarks) const;
+  /// with the detector boxes the predictor was trained on. The box is turned by the face's
+  /// roll (the turn of the least-squares similarity) less `upright` radians towards zero: a
+  /// face rolled by up to `upright` gets an upright box, as from the detector.
+  FaceBox box_for(const Landmarks2D& landmarks, double upright = 0) const;
 
   static constexpr int kShapeSize = 2 * kNumLandmarks;  // x0,y0,x1,y1,... in box units [0,1]
 

@@ -22,6 +22,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <numbers>
 #include <thread>
 #include <vector>
 
@@ -49,7 +50,8 @@ const Frames& frames() {
         if (faces.empty()) continue;
         f.boxes.push_back(faces.front());
       } else {
-        f.boxes.push_back(test::shared_predictor()->box_for(landmarks));
+        // upright, as dlib's predictor takes them
+        f.boxes.push_back(test::shared_predictor()->box_for(landmarks, std::numbers::pi));
       }
       predictor.predict(gray, f.boxes.back(), landmarks);
       f.gray.push_back(gray);
