@@ -4,6 +4,7 @@
 #include <dlib/opencv/cv_image.h>
 
 #include <algorithm>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -48,10 +49,31 @@ std::vector<std::uint8_t> FaceDetector::serialize() const {
   return {bytes.begin(), bytes.end()};
 }
 
+namespace {
+
+/// dlib's built-in detector is five HOG filters: a face looking to the front, to the left, to
+/// the right, to the front rolled one way and to the front rolled the other
+/// (dlib/image_processing/frontal_face_detector.h). Its last two find faces rolled by about
+/// 10-40 and 20-50 degrees (GRID frames turned in steps of 10 degrees; the front filter
+/// finds them to 10): their boxes are turned by about the middle of that.
+constexpr unsigned long kBuiltinFilters = 5, kRolledFilter = 3, kRolledOtherWayFilter = 4;
+constexpr double kRolledFilterRoll = -30 * std::numbers::pi / 180;
+
+}  // namespace
+
 std::vector<FaceBox> FaceDetector::detect(const cv::Mat& gray) {
   std::vector<FaceBox> boxes;
-  for (const dlib::rectangle& r : hog_->detector(dlib::cv_image<unsigned char>(gray)))
-    boxes.push_back({r.left(), r.top(), r.right(), r.bottom()});
+  std::vector<dlib::rect_detection> found;
+  hog_->detector(dlib::cv_image<unsigned char>(gray), found);
+  const bool builtin = hog_->detector.num_detectors() == kBuiltinFilters;
+  for (const dlib::rect_detection& d : found) {
+    const dlib::rectangle& r = d.rect;
+    const double roll = !builtin                                  ? 0
+                        : d.weight_index == kRolledFilter         ? kRolledFilterRoll
+                        : d.weight_index == kRolledOtherWayFilter ? -kRolledFilterRoll
+                                                                  : 0;
+    boxes.push_back({r.left(), r.top(), r.right(), r.bottom(), roll});
+  }
   std::stable_sort(boxes.begin(), boxes.end(), [](const FaceBox& a, const FaceBox& b) { return a.area() > b.area(); });
   return boxes;
 }

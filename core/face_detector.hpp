@@ -19,9 +19,9 @@ namespace lipdrive {
 
 /// A face box in image pixels with inclusive corners, the convention of dlib::rectangle
 /// (a 100 px wide box has right = left + 99), turned by `roll` radians about its centre (from
-/// the image's x axis towards its y axis, so clockwise on the screen). The detector's boxes are
-/// upright; the shape predictor places its mean shape in a turned one as in an upright box of
-/// the picture turned back (docs/method.md 1, "A rolled head").
+/// the image's x axis towards its y axis, so clockwise on the screen). The shape predictor
+/// places its mean shape in a turned box as in an upright box of the picture turned back
+/// (docs/method.md 1, "A rolled head").
 struct FaceBox {
   long left = 0, top = 0, right = -1, bottom = -1;
   double roll = 0;
@@ -48,8 +48,9 @@ class FaceDetector {
   FaceDetector& operator=(FaceDetector&&) noexcept;
   ~FaceDetector();
 
-  /// The faces in the luma image `gray` (CV_8UC1), largest first. Allocates (it runs only
-  /// to acquire a face).
+  /// The faces in the luma image `gray` (CV_8UC1), largest first. A face the built-in
+  /// detector finds with a filter for rolled faces has its box turned by about that roll (30
+  /// degrees); the others are upright. Allocates (it runs only to acquire a face).
   std::vector<FaceBox> detect(const cv::Mat& gray);
 
  private:

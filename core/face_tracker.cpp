@@ -100,12 +100,11 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
   std::optional<Candidate> best;
   for (const FaceBox& face : faces) {
     const FaceBox box = {std::lround(face.left / scale), std::lround(face.top / scale), std::lround(face.right / scale),
-                         std::lround(face.bottom / scale)};
+                         std::lround(face.bottom / scale), face.roll};
     predictor_.predict_median(gray, box, landmarks);  // a detector's box is only roughly placed
-    // A head rolled further than the predictor turns a face from an upright box: again, from a
-    // box turned with it, until the turn settles (from the upright box a face rolled 40 degrees
-    // reads as rolled 14, and each pass turns it further).
-    double turn = 0;
+    // A head rolled further than the predictor turns a face from the detector's box: again,
+    // from a box turned with it, until the turn settles.
+    double turn = box.roll;
     for (int pass = 0; pass < kTurnPasses; ++pass) {
       const FaceBox turned = predictor_.data()->box_for(landmarks, kUprightRoll);
       if (std::abs(turned.roll - turn) < kTurnSettled) break;

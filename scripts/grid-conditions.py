@@ -28,6 +28,10 @@ CONDITIONS = {
     "re-encoded": "null",
     "rotated 15°": "rotate=15*PI/180:fillcolor=black",
     "rotated -20°": "rotate=-20*PI/180:fillcolor=black",
+    "rotated 40°": "rotate=40*PI/180:fillcolor=black",
+    # A head that rolls over the take, from upright to on its side: 30° a second, 90° at the
+    # end of a 3-second clip, on a canvas large enough to keep the face in view.
+    "rolling to 90°": "pad=576:460:(ow-iw)/2:(oh-ih)/2:gray,rotate=t*30*PI/180:fillcolor=gray",
     "mirrored": "hflip",
     "warm light (3000 K)": "colortemperature=temperature=3000",
     "cool light (9000 K)": "colortemperature=temperature=9000",

@@ -50,9 +50,9 @@ const Frames& frames() {
         if (faces.empty()) continue;
         f.boxes.push_back(faces.front());
       } else {
-        // upright, as dlib's predictor takes them
         f.boxes.push_back(test::shared_predictor()->box_for(landmarks, std::numbers::pi));
       }
+      f.boxes.back().roll = 0;  // upright, as dlib's predictor takes them
       predictor.predict(gray, f.boxes.back(), landmarks);
       f.gray.push_back(gray);
     }
