@@ -25,6 +25,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -644,7 +645,8 @@ Landmarks2D moved_by(const cv::Mat& turn, const Landmarks2D& landmarks) {
 // off and at 40 degrees 0.24, the lips read nearly shut, and every check still passed. The
 // box now turns with the face (box_for measures the roll), and the mouth is where it is in
 // the upright picture, on acquisition (from the detector's box, turned when a filter for rolled
-// faces found it, and again from a box turned with it) and while tracked.
+// faces found it, and again from a box turned with it) and while tracked, which allocates
+// nothing.
 TEST(FaceTracker, AHeadRolledFortyDegreesKeepsItsMouthInPlace) {
   std::vector<cv::Mat> faces = {generated_face()};
   if (faces.front().empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
@@ -672,7 +674,15 @@ TEST(FaceTracker, AHeadRolledFortyDegreesKeepsItsMouthInPlace) {
       FaceTracker tracker(test::shared_predictor());
       ASSERT_EQ(tracker.track(picture, landmarks), TrackStatus::kAcquired) << what;
       EXPECT_LT(mouth_error(), 0.02) << "acquired, " << what;
-      for (int f = 0; f < 5; ++f) ASSERT_EQ(tracker.track(picture, landmarks), TrackStatus::kTracking) << what;
+      // Tracked in the turned box, without allocating.
+      std::array<TrackStatus, 5> statuses{};
+      test::count_allocations_on_this_thread(true);
+      const long before = test::allocation_count();
+      for (TrackStatus& status : statuses) status = tracker.track(picture, landmarks);
+      const long allocations = test::allocation_count() - before;
+      test::count_allocations_on_this_thread(false);
+      for (const TrackStatus status : statuses) ASSERT_EQ(status, TrackStatus::kTracking) << what;
+      EXPECT_EQ(allocations, 0) << what;
       EXPECT_LT(mouth_error(), 0.02) << "tracked, " << what;
     }
   }
