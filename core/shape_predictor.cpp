@@ -553,11 +553,9 @@ FaceBox ShapePredictorData::box_for(const Landmarks2D& landmarks, double upright
   const double roll = std::copysign(std::max(0.0, std::abs(face_roll) - upright), face_roll);
   const Eigen::Matrix2d turn = Eigen::Rotation2Dd(roll).toRotationMatrix();
   // right - left of the box (= bottom - top: dlib boxes are square)
-  const double size = roll == 0 ? dot / norm : (dot * turn(0, 0) + cross * turn(1, 0)) / norm;
-  const Eigen::Vector2d top_left =
-      roll == 0 ? Eigen::Vector2d(mean_image - size * mean_shape)
-                : Eigen::Vector2d(mean_image - turn * (size * (mean_shape - Eigen::Vector2d(0.5, 0.5))) -
-                                  Eigen::Vector2d(0.5 * size, 0.5 * size));
+  const double size = (dot * turn(0, 0) + cross * turn(1, 0)) / norm;
+  const Eigen::Vector2d centre = mean_image - turn * (size * (mean_shape - Eigen::Vector2d(0.5, 0.5)));
+  const Eigen::Vector2d top_left = centre - Eigen::Vector2d(0.5 * size, 0.5 * size);
   FaceBox box;
   box.left = std::lround(top_left.x());
   box.top = std::lround(top_left.y());
