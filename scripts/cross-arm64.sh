@@ -19,10 +19,9 @@ state=$build/apt
 
 libdir=/usr/lib/aarch64-linux-gnu  # Debian's arm64 library folder, in the root
 # The arm64 root: the -dev libraries the product builds against (scripts/install-deps.sh), and
-# what the host has of them through other packages: the C and C++ runtimes, BLAS and LAPACK
-# (dlib's), OpenSSL (the monitor's tests).
+# the C and C++ runtimes, which the host has through its compiler.
 mapfile -t arm64_packages < <(./scripts/install-deps.sh --libraries)
-arm64_packages+=(libc6-dev libstdc++-12-dev libblas-dev liblapack-dev libssl-dev)
+arm64_packages+=(libc6-dev libstdc++-12-dev)
 # The tests run under emulation: those that neither time the daemon (their bounds are for the
 # native build; emulated, everything is 10-25x slower), nor start `lipdrive` as a program of
 # its own (without the kernel's binfmt_misc, an arm64 program cannot start another), nor need

@@ -6,12 +6,14 @@
 # Idempotent: when everything is present it does nothing and prints nothing.
 set -euo pipefail
 
+# dlib's CMake package links BLAS and LAPACK through their -dev packages' libraries, which
+# libdlib-dev does not pull in; the monitor's test links OpenSSL.
 libraries=(
-  libeigen3-dev libopencv-dev libdlib-dev
+  libeigen3-dev libopencv-dev libdlib-dev libblas-dev liblapack-dev
   libmodbus-dev libgpiod-dev libcamera-dev libsystemd-dev
   libcli11-dev libspdlog-dev libfmt-dev libtomlplusplus-dev nlohmann-json3-dev
   libtinyobjloader-dev libcpp-httplib-dev zlib1g-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libssl-dev
   libola-dev liblo-dev libltc-dev
   libasound2-dev libaubio-dev libavformat-dev libavcodec-dev libswresample-dev libswscale-dev libavutil-dev
 )
