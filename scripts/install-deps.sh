@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package lipdrive needs to build, run and test; with packages as
-# arguments, those instead (scripts/cross-arm64.sh's host tools). `--libraries` prints the -dev
-# libraries the build compiles and links against, one a line, and installs nothing
-# (scripts/cross-arm64.sh unpacks their arm64 builds).
+# arguments, those instead (the host tools of scripts/cross-arm64.sh, the clang of
+# scripts/sanitize.sh). `--libraries` prints the -dev libraries the build compiles and links
+# against, one a line, and installs nothing (scripts/cross-arm64.sh unpacks their arm64 builds).
 # Idempotent: when everything is present it does nothing and prints nothing.
 set -euo pipefail
 

@@ -36,6 +36,8 @@ build() {
   local lane=$1
   shift
   ./scripts/install-deps.sh
+  # clang, its sanitizer and libFuzzer runtimes, llvm-symbolizer for the reports' stacks.
+  ./scripts/install-deps.sh clang libclang-rt-14-dev llvm
   export CCACHE_BASEDIR="$PWD"
   local jobs=$(($(nproc) < 2 ? $(nproc) : 2))
   case "$lane" in
