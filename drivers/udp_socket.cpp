@@ -48,11 +48,18 @@ UdpEndpoint resolve_udp(const std::string& host, int port) {
   const std::string service = std::to_string(port);
   if (const int error = ::getaddrinfo(host.c_str(), service.c_str(), &hints, &found); error != 0)
     throw UdpError("host \"" + host + "\" does not resolve: " + ::gai_strerror(error));
+  const addrinfo& chosen = preferred_address(*found);
   UdpEndpoint endpoint;
-  std::memcpy(&endpoint.address, found->ai_addr, found->ai_addrlen);
-  endpoint.length = found->ai_addrlen;
+  std::memcpy(&endpoint.address, chosen.ai_addr, chosen.ai_addrlen);
+  endpoint.length = chosen.ai_addrlen;
   ::freeaddrinfo(found);
   return endpoint;
+}
+
+const addrinfo& preferred_address(const addrinfo& found) {
+  for (const addrinfo* a = &found; a != nullptr; a = a->ai_next)
+    if (a->ai_family == AF_INET) return *a;
+  return found;
 }
 
 UdpSocket UdpSocket::for_sending(const UdpEndpoint& destination) { return UdpSocket(open_socket(destination)); }

@@ -6,6 +6,7 @@
 
 #include "drivers/unique_fd.hpp"
 
+#include <netdb.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
 
@@ -31,8 +32,15 @@ struct UdpEndpoint {
   std::string describe() const;
 };
 
-/// Resolves `host` (a name or a numeric address) and `port` for UDP. Throws UdpError.
+/// Resolves `host` (a name or a numeric address) and `port` for UDP, to the address
+/// preferred_address() picks. Throws UdpError.
 UdpEndpoint resolve_udp(const std::string& host, int port);
+
+/// Of getaddrinfo's answers for a name (a non-empty list), the first IPv4 address, else the
+/// first. Debian's /etc/hosts gives `localhost` the address ::1 as well as 127.0.0.1 and
+/// getaddrinfo may sort ::1 first, while show-control peers (and liblo's servers) mostly
+/// listen on IPv4 alone: "localhost" must reach them.
+const addrinfo& preferred_address(const addrinfo& found);
 
 class UdpSocket {
  public:

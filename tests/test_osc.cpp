@@ -4,6 +4,7 @@
 #include "core/osc_addresses.hpp"
 #include "drivers/osc_receiver.hpp"
 #include "drivers/osc_sender.hpp"
+#include "drivers/udp_socket.hpp"
 #include "osc_peers.hpp"
 #include "serial_peers.hpp"
 
@@ -165,6 +166,32 @@ TEST(OscBundle, SettingAndSendingAllocateNothing) {
   test::count_allocations_on_this_thread(false);
   EXPECT_EQ(allocations, 0);
   EXPECT_TRUE(test::eventually([&] { return capture.bundles().size() == 100; }, 3s));
+}
+
+TEST(OscSender, ANameWithBothAddressFamiliesReachesItsIpv4Peer) {
+  // getaddrinfo's answers for "localhost" on a Debian 12 machine: ::1 first, then 127.0.0.1;
+  // a liblo server listens on IPv4 alone.
+  sockaddr_in6 v6{};
+  v6.sin6_family = AF_INET6;
+  v6.sin6_addr = in6addr_loopback;
+  sockaddr_in v4{};
+  v4.sin_family = AF_INET;
+  v4.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  addrinfo second{};
+  second.ai_family = AF_INET;
+  second.ai_addr = reinterpret_cast<sockaddr*>(&v4);
+  second.ai_addrlen = sizeof v4;
+  addrinfo first{};
+  first.ai_family = AF_INET6;
+  first.ai_addr = reinterpret_cast<sockaddr*>(&v6);
+  first.ai_addrlen = sizeof v6;
+  first.ai_next = &second;
+  EXPECT_EQ(&preferred_address(first), &second);
+  // A name with IPv6 addresses alone keeps its first.
+  first.ai_next = nullptr;
+  EXPECT_EQ(&preferred_address(first), &first);
+  // And "localhost" reaches a peer on 127.0.0.1 whatever order this machine's resolver gives.
+  EXPECT_EQ(resolve_udp("localhost", 9000).describe(), "127.0.0.1:9000");
 }
 
 TEST(OscSender, AHostThatDoesNotResolveIsAnError) {
