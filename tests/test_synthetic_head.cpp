@@ -9,7 +9,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <set>
 #include <string>
 
@@ -265,19 +264,6 @@ TEST(MeshRenderer, CameraProjectionRendersWhereTheCameraProjects) {
   EXPECT_NEAR(q.rotation.determinant(), 1, 1e-5);
   EXPECT_GT(q.scale, 1.7);
   EXPECT_LT(q.scale, 1.7 * 1.1);
-}
-
-TEST(MeshRenderer, RendersQuickly) {
-  const Mesh mesh = mesh_of(pose("BigAah_100"));
-  double fastest_ms = 1e9;  // best of three: other processes share the machine
-  for (int run = 0; run < 3; ++run) {
-    const auto start = std::chrono::steady_clock::now();
-    const cv::Mat image = render_mesh(mesh, RenderView{30, cv::Size(640, 640)});
-    const auto elapsed = std::chrono::steady_clock::now() - start;
-    ASSERT_FALSE(image.empty());
-    fastest_ms = std::min(fastest_ms, std::chrono::duration<double, std::milli>(elapsed).count());
-  }
-  EXPECT_LT(fastest_ms, 100);
 }
 
 }  // namespace
