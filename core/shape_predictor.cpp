@@ -1,6 +1,7 @@
 #include "core/shape_predictor.hpp"
 
 #include "core/checksum.hpp"
+#include "core/statistics.hpp"
 
 #include <dlib/image_processing/shape_predictor.h>
 
@@ -688,8 +689,7 @@ void ShapePredictor::predict_median(const cv::Mat& gray, const FaceBox& box, Lan
   std::array<double, kStarts> values;
   for (Eigen::Index i = 0; i < out.size(); ++i) {
     for (int k = 0; k < kStarts; ++k) values[k] = starts_[k](i);
-    std::nth_element(values.begin(), values.begin() + kStarts / 2, values.end());
-    out(i) = values[kStarts / 2];
+    out(i) = median(values);
   }
 }
 
