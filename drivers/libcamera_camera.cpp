@@ -1,6 +1,7 @@
 #include "drivers/libcamera_camera.hpp"
 
 #include "core/backoff.hpp"
+#include "drivers/chroma_420.hpp"
 
 #include <sys/mman.h>
 
@@ -15,6 +16,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
+#include <optional>
 #include <system_error>
 #include <thread>
 #include <utility>
@@ -35,6 +37,15 @@ const std::array kLumaFirst = {libcamera::formats::YUV420, libcamera::formats::N
 
 bool is_luma_first(const libcamera::PixelFormat& format) {
   return std::ranges::find(kLumaFirst, format) != kLumaFirst.end();
+}
+
+/// Where a luma-first format keeps its Cr; none in R8.
+std::optional<Chroma420> chroma_of(const libcamera::PixelFormat& format) {
+  if (format == libcamera::formats::YUV420) return Chroma420::kPlanes;
+  if (format == libcamera::formats::YVU420) return Chroma420::kPlanesCrFirst;
+  if (format == libcamera::formats::NV12) return Chroma420::kPairs;
+  if (format == libcamera::formats::NV21) return Chroma420::kPairsCrFirst;
+  return std::nullopt;
 }
 
 /// libcamera returns negated errno values.
@@ -136,8 +147,16 @@ class Session {
   }
   /// Wraps the luma plane of a completed request's buffer (no copy).
   cv::Mat luma(const libcamera::Request& request) const {
-    return cv::Mat(static_cast<int>(height_), static_cast<int>(width_), CV_8UC1, mappings_[request.cookie()].luma,
-                   stride_);
+    return cv::Mat(static_cast<int>(height_), static_cast<int>(width_), CV_8UC1,
+                   const_cast<std::uint8_t*>(planes_[request.cookie()].luma), stride_);
+  }
+  /// Its Cr at half the width and height: wrapped, or gathered from Cb Cr pairs into the
+  /// session's own plane; empty without colour (R8).
+  cv::Mat cr(const libcamera::Request& request) {
+    const std::uint8_t* plane = planes_[request.cookie()].cr;
+    if (!chroma_ || plane == nullptr) return {};
+    return cr_of_420(*chroma_, plane, chroma_stride(*chroma_, stride_), static_cast<int>(width_),
+                     static_cast<int>(height_), gathered_cr_);
   }
   double frame_rate() const { return frame_rate_; }
 
@@ -145,7 +164,11 @@ class Session {
   struct Mapping {
     void* base;
     std::size_t length;
-    std::uint8_t* luma;
+  };
+  /// Where a buffer's planes are mapped.
+  struct BufferPlanes {
+    const std::uint8_t* luma = nullptr;
+    const std::uint8_t* cr = nullptr;  // null without colour
   };
 
   explicit Session(std::shared_ptr<libcamera::Camera> camera) : camera_(std::move(camera)) {}
@@ -198,6 +221,7 @@ class Session {
     width_ = stream.size.width;
     height_ = stream.size.height;
     stride_ = stream.stride;
+    chroma_ = chroma_of(stream.pixelFormat);
   }
 
   void map_buffers() {
@@ -205,18 +229,13 @@ class Session {
     if (const int error = allocator_->allocate(stream_); error < 0)
       fail("cannot allocate buffers: " + error_text(error));
     for (const std::unique_ptr<libcamera::FrameBuffer>& buffer : allocator_->buffers(stream_)) {
-      // The luma plane is the first; it may share its dmabuf with the chroma planes at an
-      // offset, and mmap needs a page-aligned file offset, so the map starts at 0.
-      const libcamera::FrameBuffer::Plane& plane = buffer->planes().front();
-      if (plane.offset == libcamera::FrameBuffer::Plane::kInvalidOffset) fail("buffer plane without an offset");
-      if (plane.length < std::size_t{stride_} * height_) fail("buffer luma plane shorter than stride x height");
-      const std::size_t length = std::size_t{plane.offset} + plane.length;
-      void* base = mmap(nullptr, length, PROT_READ, MAP_SHARED, plane.fd.get(), 0);
-      if (base == MAP_FAILED) fail("cannot map a buffer: " + error_text(-errno));
-      mappings_.push_back({base, length, static_cast<std::uint8_t*>(base) + plane.offset});
+      // The luma plane is the first.
+      const libcamera::FrameBuffer::Plane& luma = buffer->planes().front();
+      if (luma.length < std::size_t{stride_} * height_) fail("buffer luma plane shorter than stride x height");
+      planes_.push_back({map(luma), chroma_ ? map_cr(*buffer) : nullptr});
 
-      // The cookie is the buffer's index in mappings_.
-      std::unique_ptr<libcamera::Request> request = camera_->createRequest(mappings_.size() - 1);
+      // The cookie is the buffer's index in planes_.
+      std::unique_ptr<libcamera::Request> request = camera_->createRequest(planes_.size() - 1);
       if (!request) fail("cannot create a request");
       if (const int error = request->addBuffer(stream_, buffer.get()); error < 0)
         fail("cannot add a buffer to a request: " + error_text(error));
@@ -225,6 +244,42 @@ class Session {
     // Every request is in flight or completed at most once: push_back never reallocates
     // on libcamera's thread.
     completed_.reserve(requests_.size());
+    if (chroma_) gathered_cr_.create(static_cast<int>(height_ / 2), static_cast<int>(width_ / 2), CV_8UC1);
+  }
+
+  /// Maps a plane readable and returns its first byte. A plane may share its dmabuf with the
+  /// others at an offset, and mmap needs a page-aligned file offset, so the map starts at 0.
+  const std::uint8_t* map(const libcamera::FrameBuffer::Plane& plane) {
+    if (plane.offset == libcamera::FrameBuffer::Plane::kInvalidOffset) fail("buffer plane without an offset");
+    const std::size_t length = std::size_t{plane.offset} + plane.length;
+    void* base = mmap(nullptr, length, PROT_READ, MAP_SHARED, plane.fd.get(), 0);
+    if (base == MAP_FAILED) fail("cannot map a buffer: " + error_text(-errno));
+    mappings_.push_back({base, length});
+    return static_cast<const std::uint8_t*>(base) + plane.offset;
+  }
+
+  /// The buffer's Cr plane (or plane of pairs), mapped. Null, with a warning, when the
+  /// buffer's planes do not hold it (the lip contact then reads the luma alone).
+  const std::uint8_t* map_cr(const libcamera::FrameBuffer& buffer) {
+    std::vector<BufferBytes> planes;
+    for (const libcamera::FrameBuffer::Plane& plane : buffer.planes()) {
+      if (plane.offset == libcamera::FrameBuffer::Plane::kInvalidOffset)
+        return no_colour("a buffer plane without an offset");
+      planes.push_back({planes.size(), plane.offset, plane.length});
+    }
+    const std::optional<BufferBytes> cr =
+        locate_cr(*chroma_, planes, stride_, static_cast<int>(width_), static_cast<int>(height_));
+    if (!cr) return no_colour("its buffers do not hold the format's chroma plane");
+    libcamera::FrameBuffer::Plane plane = buffer.planes()[cr->plane];
+    plane.offset = static_cast<unsigned>(cr->offset);
+    plane.length = static_cast<unsigned>(cr->length);
+    return map(plane);
+  }
+
+  const std::uint8_t* no_colour(const char* reason) {
+    spdlog::warn("libcamera {}: {}: the lip contact reads the luma alone", camera_->id(), reason);
+    chroma_.reset();
+    return nullptr;
   }
 
   void start(double frame_rate, int exposure_us) {
@@ -283,8 +338,11 @@ class Session {
   libcamera::Stream* stream_ = nullptr;
   unsigned width_ = 0, height_ = 0, stride_ = 0;
   double frame_rate_ = 0;
+  std::optional<Chroma420> chroma_;  // where the stream's format keeps Cr; none in R8
   std::unique_ptr<libcamera::FrameBufferAllocator> allocator_;
-  std::vector<Mapping> mappings_;  // by request cookie
+  std::vector<Mapping> mappings_;
+  std::vector<BufferPlanes> planes_;  // by request cookie
+  cv::Mat gathered_cr_;               // Cr out of Cb Cr pairs (NV12, NV21), the latest frame's
   std::vector<std::unique_ptr<libcamera::Request>> requests_;
 
   mutable std::mutex mutex_;
@@ -324,6 +382,7 @@ class LibcameraCamera::Impl {
     const auto capture_ns = static_cast<std::int64_t>(metadata.timestamp);
     if (first_capture_ns_ < 0) first_capture_ns_ = capture_ns;
     frame.gray = session_->luma(*request);
+    frame.cr = session_->cr(*request);
     frame.capture_time_ns = capture_ns;
     frame.sequence = sequence_for(metadata.sequence);
     frame.media_time_s = static_cast<double>(capture_ns - first_capture_ns_) * 1e-9;

@@ -1,6 +1,7 @@
 // A libcamera camera (CSI sensors behind an ISP, e.g. on Raspberry Pi boards) as a
-// FrameSource: one Viewfinder stream in a luma-first format, luma plane only (no Cr: the lip
-// contact reads the luma alone, as from a monochrome camera).
+// FrameSource: one Viewfinder stream in a luma-first format (YUV420, NV12, YVU420, NV21, or
+// R8 from a monochrome sensor), its luma plane and, but for R8, the Cr samples the lip
+// contact reads (drivers/chroma_420.hpp).
 //
 // Thread model: one thread owns a LibcameraCamera and makes every call on it. libcamera
 // completes requests on a thread of its own (the CameraManager's); its requestCompleted and
@@ -8,7 +9,8 @@
 // notify a condition variable, and grab() waits on that with the caller's timeout. The
 // buffers, requests and the camera itself are touched by the owner thread only.
 //
-// Lifetime of frames: Frame::gray points into the mmapped buffer of a completed request; the
+// Lifetime of frames: Frame::gray and Frame::cr point into the mmapped buffer of a completed
+// request (the Cr of NV12 and NV21 into the camera's own plane, gathered from the pairs); the
 // request goes back to the camera at the start of the next grab(), so a frame is valid until
 // then.
 //

@@ -1,5 +1,6 @@
 #include "drivers/v4l2_camera.hpp"
 
+#include "drivers/chroma_420.hpp"
 #include "drivers/clock.hpp"
 #include "drivers/image_codec.hpp"
 #include "drivers/unique_fd.hpp"
@@ -95,7 +96,8 @@ void to_frame_height(const cv::Mat& field, cv::Mat& frame) {
 
 using detail::V4l2Stream;
 
-constexpr std::array kAutoOrder = {PixelFormat::kGrey, PixelFormat::kNv12, PixelFormat::kYuyv, PixelFormat::kMjpeg};
+// Colour with a luma plane first (the lip contact reads Cr), then luma alone, JPEG decoding last.
+constexpr std::array kAutoOrder = {PixelFormat::kNv12, PixelFormat::kYuyv, PixelFormat::kGrey, PixelFormat::kMjpeg};
 constexpr const char* kByIdDirectory = "/dev/v4l/by-id/";
 
 std::string error_text(int error) { return std::generic_category().message(error); }
@@ -221,7 +223,7 @@ class StreamOpener {
     }
     const auto chosen = std::ranges::find_if(kAutoOrder, is_offered);
     if (chosen == kAutoOrder.end())
-      fail("offers none of GREY, NV12, YUYV, MJPEG (offers: " + fourcc_list(offered) + ")");
+      fail("offers none of NV12, YUYV, GREY, MJPEG (offers: " + fourcc_list(offered) + ")");
     return *chosen;
   }
 
@@ -519,9 +521,8 @@ cv::Mat V4l2Camera::luma_of(const void* data, std::uint32_t bytes_used) {
     case PixelFormat::kGrey: return cv::Mat(height, width, CV_8UC1, pixels, negotiated_.bytes_per_line);
     case PixelFormat::kNv12: {  // the Y plane, full size, then Cb Cr pairs at half size both ways
       const std::size_t luma_bytes = static_cast<std::size_t>(negotiated_.bytes_per_line) * height;
-      cv::extractChannel(cv::Mat(height / 2, width / 2, CV_8UC2, static_cast<std::uint8_t*>(pixels) + luma_bytes,
-                                 negotiated_.bytes_per_line),
-                         cr_, 1);
+      cr_of_420(Chroma420::kPairs, static_cast<const std::uint8_t*>(data) + luma_bytes,
+                chroma_stride(Chroma420::kPairs, negotiated_.bytes_per_line), width, height, cr_);
       return cv::Mat(height, width, CV_8UC1, pixels, negotiated_.bytes_per_line);
     }
     case PixelFormat::kYuyv:  // Y0 U Y1 V: luma is channel 0 of two-channel pixels, Cr channel 3 of pairs

@@ -63,8 +63,9 @@ struct V4l2Options {
   /// A by-id name survives re-enumeration: after an unplug the same camera is reopened
   /// even if it comes back as another /dev/videoN.
   std::string device = "/dev/video0";
-  /// kAuto picks the first the device offers of GREY, NV12, YUYV, MJPEG: the ones whose
-  /// luma plane needs no copy come first, JPEG decoding last.
+  /// kAuto picks the first the device offers of NV12, YUYV, GREY, MJPEG: colour with a luma
+  /// plane first (the lip contact reads Cr; NV12's luma needs no copy), then luma alone, JPEG
+  /// decoding last.
   PixelFormat format = PixelFormat::kAuto;
   unsigned width = 0;     // 0 keeps the device's current size
   unsigned height = 0;    // 0 keeps the device's current size

@@ -1,5 +1,6 @@
 // The V4L2 driver against a fake device behind the system-call seam, plus one check that
 // the real system calls fail cleanly.
+#include "drivers/chroma_420.hpp"
 #include "drivers/clock.hpp"
 #include "drivers/v4l2_camera.hpp"
 #include "tests/allocation_counter.hpp"
@@ -9,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <chrono>
 #include <limits>
 #include <ostream>
@@ -72,15 +74,15 @@ TEST(V4l2Negotiation, HonoursTheRequestedFormat) {
   expect_clean(device);
 }
 
-TEST(V4l2Negotiation, AutoPrefersGreyThenNv12ThenYuyvThenMjpeg) {
+TEST(V4l2Negotiation, AutoPrefersNv12ThenYuyvThenGreyThenMjpeg) {
   struct Case {
     std::vector<std::uint32_t> offered;
     PixelFormat expected;
   };
   const std::vector<Case> cases = {
-      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_NV12, V4L2_PIX_FMT_GREY}, PixelFormat::kGrey},
-      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_NV12}, PixelFormat::kNv12},
-      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_RGB24, V4L2_PIX_FMT_YUYV}, PixelFormat::kYuyv},
+      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_NV12, V4L2_PIX_FMT_GREY}, PixelFormat::kNv12},
+      {{V4L2_PIX_FMT_GREY, V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_YUYV}, PixelFormat::kYuyv},
+      {{V4L2_PIX_FMT_MJPEG, V4L2_PIX_FMT_RGB24, V4L2_PIX_FMT_GREY}, PixelFormat::kGrey},
       {{V4L2_PIX_FMT_H264, V4L2_PIX_FMT_MJPEG}, PixelFormat::kMjpeg},
   };
   for (const Case& c : cases) {
@@ -711,6 +713,122 @@ TEST(V4l2Lifetime, FailedOpenReleasesWhatItTook) {
   FakeV4l2Device device(config);
   EXPECT_THROW(V4l2Camera(options_for(config), device), SourceError);
   expect_clean(device);
+}
+
+// The Cr of a 4:2:0 picture in each layout cameras deliver (V4L2's NV12, libcamera's four):
+// a 10 x 6 picture, its chroma planes padded past their width, every Cb and Cr sample a
+// value of its own.
+struct Picture420 {
+  static constexpr int kWidth = 10, kHeight = 6, kLumaStride = 16;
+  Chroma420 layout;
+  std::vector<std::uint8_t> bytes;  // luma, then the chroma plane(s)
+  std::size_t stride = chroma_stride(layout, kLumaStride);
+
+  static std::uint8_t cr(int x, int y) { return static_cast<std::uint8_t>(100 + 10 * y + x); }
+  static std::uint8_t cb(int x, int y) { return static_cast<std::uint8_t>(30 + 10 * y + x); }
+
+  explicit Picture420(Chroma420 which) : layout(which) {
+    const std::size_t luma = std::size_t{kLumaStride} * kHeight, plane = stride * (kHeight / 2);
+    const bool pairs = layout == Chroma420::kPairs || layout == Chroma420::kPairsCrFirst;
+    bytes.assign(luma + (pairs ? plane : 2 * plane), 0xee);  // padding reads 0xee
+    for (int y = 0; y < kHeight / 2; ++y)
+      for (int x = 0; x < kWidth / 2; ++x) {
+        const std::size_t row = luma + static_cast<std::size_t>(y) * stride;
+        switch (layout) {
+          case Chroma420::kPlanes: bytes[row + x] = cb(x, y), bytes[row + plane + x] = cr(x, y); break;
+          case Chroma420::kPlanesCrFirst: bytes[row + x] = cr(x, y), bytes[row + plane + x] = cb(x, y); break;
+          case Chroma420::kPairs: bytes[row + 2 * x] = cb(x, y), bytes[row + 2 * x + 1] = cr(x, y); break;
+          case Chroma420::kPairsCrFirst: bytes[row + 2 * x] = cr(x, y), bytes[row + 2 * x + 1] = cb(x, y); break;
+        }
+      }
+  }
+  /// The chroma plane that holds Cr, as a camera driver finds it.
+  const std::uint8_t* cr_plane() const {
+    return bytes.data() + std::size_t{kLumaStride} * kHeight +
+           static_cast<std::size_t>(cr_plane_index(layout)) * stride * (kHeight / 2);
+  }
+};
+
+TEST(Chroma420, EveryLayoutGivesTheCrSamplesAtHalfTheSize) {
+  for (const Chroma420 layout :
+       {Chroma420::kPlanes, Chroma420::kPlanesCrFirst, Chroma420::kPairs, Chroma420::kPairsCrFirst}) {
+    SCOPED_TRACE(static_cast<int>(layout));
+    const Picture420 picture(layout);
+    cv::Mat gathered;
+    const cv::Mat cr =
+        cr_of_420(layout, picture.cr_plane(), picture.stride, Picture420::kWidth, Picture420::kHeight, gathered);
+    ASSERT_EQ(cr.size(), cv::Size(5, 3));
+    ASSERT_EQ(cr.type(), CV_8UC1);
+    for (int y = 0; y < 3; ++y)
+      for (int x = 0; x < 5; ++x) EXPECT_EQ(cr.at<std::uint8_t>(y, x), Picture420::cr(x, y)) << x << ", " << y;
+    EXPECT_LE(chroma_plane_bytes(layout, Picture420::kWidth, Picture420::kHeight, picture.stride),
+              picture.bytes.size() - static_cast<std::size_t>(picture.cr_plane() - picture.bytes.data()));
+  }
+}
+
+TEST(Chroma420, PlanesAreWrappedAndPairsGatheredWithoutAllocatingPerFrame) {
+  const Picture420 planar(Chroma420::kPlanes);
+  cv::Mat gathered;
+  const cv::Mat view = cr_of_420(Chroma420::kPlanes, planar.cr_plane(), planar.stride, 10, 6, gathered);
+  EXPECT_EQ(view.data, planar.cr_plane());
+  EXPECT_EQ(view.step[0], planar.stride);
+  EXPECT_TRUE(gathered.empty());
+
+  const Picture420 pairs(Chroma420::kPairs);
+  gathered.create(3, 5, CV_8UC1);  // as a camera does once per stream
+  const std::uint8_t* own = gathered.data;
+  lipdrive::test::count_allocations_on_this_thread(true);
+  const long before = lipdrive::test::allocation_count();
+  const cv::Mat cr = cr_of_420(Chroma420::kPairs, pairs.cr_plane(), pairs.stride, 10, 6, gathered);
+  const long allocations = lipdrive::test::allocation_count() - before;
+  lipdrive::test::count_allocations_on_this_thread(false);
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(cr.data, own);
+}
+
+TEST(Chroma420, ChromaStridesFollowTheLuma) {
+  EXPECT_EQ(chroma_stride(Chroma420::kPlanes, 640), 320u);
+  EXPECT_EQ(chroma_stride(Chroma420::kPlanesCrFirst, 640), 320u);
+  EXPECT_EQ(chroma_stride(Chroma420::kPairs, 640), 640u);
+  EXPECT_EQ(chroma_stride(Chroma420::kPairsCrFirst, 640), 640u);
+  EXPECT_EQ(cr_plane_index(Chroma420::kPlanes), 1);
+  EXPECT_EQ(cr_plane_index(Chroma420::kPlanesCrFirst), 0);
+  // The last row needs only its samples, not the padding after them.
+  EXPECT_EQ(chroma_plane_bytes(Chroma420::kPairs, 640, 480, 704), 704u * 239 + 640);
+  EXPECT_EQ(chroma_plane_bytes(Chroma420::kPlanes, 640, 480, 352), 352u * 239 + 320);
+  EXPECT_EQ(chroma_plane_bytes(Chroma420::kPlanes, 1, 480, 352), 0u);
+}
+
+TEST(Chroma420, CrIsFoundInItsOwnBufferPlaneOrAfterTheLumaInASingleOne) {
+  constexpr std::size_t kStride = 704;  // 640 × 480 with padded rows
+  constexpr std::size_t kLuma = kStride * 480, kQuarter = kStride / 2 * 240, kPairs = kStride * 240;
+  // libcamera's buffers: a plane per colour plane, here on one dmabuf at increasing offsets.
+  const std::array<BufferBytes, 3> three{{{0, 0, kLuma}, {1, kLuma, kQuarter}, {2, kLuma + kQuarter, kQuarter}}};
+  const auto cr = locate_cr(Chroma420::kPlanes, three, kStride, 640, 480);
+  ASSERT_TRUE(cr.has_value());
+  EXPECT_EQ(cr->plane, 2u);
+  EXPECT_EQ(cr->offset, kLuma + kQuarter);
+  const auto crfirst = locate_cr(Chroma420::kPlanesCrFirst, three, kStride, 640, 480);
+  ASSERT_TRUE(crfirst.has_value());
+  EXPECT_EQ(crfirst->plane, 1u);
+  // One plane holding everything, at an offset in its dmabuf.
+  const std::array<BufferBytes, 1> one{{{0, 4096, kLuma + kPairs}}};
+  const auto pairs = locate_cr(Chroma420::kPairs, one, kStride, 640, 480);
+  ASSERT_TRUE(pairs.has_value());
+  EXPECT_EQ(pairs->offset, 4096 + kLuma);
+  EXPECT_EQ(pairs->length, kPairs);
+  const std::array<BufferBytes, 1> planar{{{0, 0, kLuma + 2 * kQuarter}}};
+  const auto second = locate_cr(Chroma420::kPlanes, planar, kStride, 640, 480);
+  ASSERT_TRUE(second.has_value());
+  EXPECT_EQ(second->offset, kLuma + kQuarter);  // after the Cb plane
+  // Too short by a byte, or planes that do not match the layout: no colour.
+  const std::array<BufferBytes, 1> short_one{{{0, 0, kLuma + kPairs - (kStride - 640) - 1}}};
+  EXPECT_FALSE(locate_cr(Chroma420::kPairs, short_one, kStride, 640, 480).has_value());
+  const std::array<BufferBytes, 1> just{{{0, 0, kLuma + kPairs - (kStride - 640)}}};
+  EXPECT_TRUE(locate_cr(Chroma420::kPairs, just, kStride, 640, 480).has_value());
+  const std::array<BufferBytes, 2> two{{{0, 0, kLuma}, {1, kLuma, kQuarter}}};
+  EXPECT_FALSE(locate_cr(Chroma420::kPlanes, two, kStride, 640, 480).has_value());
+  EXPECT_FALSE(locate_cr(Chroma420::kPairs, std::span<const BufferBytes>(), kStride, 640, 480).has_value());
 }
 
 TEST(V4l2RealSystemCalls, MissingDeviceThrowsNamingIt) {
