@@ -455,6 +455,7 @@ TEST(MonitorHttp, CommandsAreRefusedWithoutTheTokenAndCarriedOutWithIt) {
   EXPECT_EQ(s["commands"]["calibrate_requests"], 0);
   EXPECT_FALSE(s["status"]["recording"].get<bool>());
   EXPECT_TRUE(s["status"]["outputs_enabled"].get<bool>());
+  EXPECT_TRUE(s["commands"]["enable_switch"].get<bool>()) << "no enable switch configured";
   EXPECT_EQ(s["monitor"]["refused"], 4);
 
   // Calibrate: the request is counted at once, the neutral capture completes on tracked frames.

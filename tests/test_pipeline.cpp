@@ -180,12 +180,14 @@ class RecordingOutput : public Output {
     ++count;
     untracked += !(frame.status & kStatusTracking);
     opened = std::max(opened.load(), frame.values[0]);
+    value = frame.values[0];
     status = frame.status;
     last = frame;
   }
   std::string describe() const override { return "test output"; }
   std::atomic<int> count{0}, untracked{0};
   std::atomic<double> opened{0};
+  std::atomic<double> value{0};          // the first channel's, of the last frame
   std::atomic<std::uint16_t> status{0};  // the last frame's, for the test thread while the pipeline runs
   DriveFrame last;                       // read once the pipeline has stopped
 };
@@ -402,6 +404,42 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   EXPECT_NEAR(to_neutral_ms, 500, 60);
   EXPECT_TRUE(watch.fail_safe_at_neutral);
   EXPECT_TRUE(watch.followed_again) << "the drive follows the face again after the reconnect";
+}
+
+TEST_F(PipelineTest, AnOpenEnableSwitchEasesTheDriveToNeutralAndClosingItFollowsAgain) {
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  PipelineSettings settings;
+  // The signal (0..1) maps to 0..500; neutral sits at 1000, which only the fail-safe reaches.
+  settings.channels = {ChannelSpec{
+      .name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
+  settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
+  RecordingOutput output;
+  pipeline.add_output(output);
+  pipeline.start();
+  const auto following = [&] {
+    const std::uint16_t status = output.status;
+    return (status & kStatusTracking) && (status & kStatusOutputsEnabled) && !(status & kStatusFailSafe) &&
+           output.value <= 500;
+  };
+  const auto at_neutral = [&] {
+    const std::uint16_t status = output.status;
+    return (status & kStatusTracking) && !(status & kStatusOutputsEnabled) && output.value == 1000;
+  };
+  wait_for(following, 30s);
+  ASSERT_TRUE(following()) << "status " << output.status;
+
+  control.enable_switch_closed.store(false);
+  wait_for(at_neutral, 10s);
+  EXPECT_TRUE(at_neutral()) << "status " << output.status << ", open " << output.value;
+  EXPECT_TRUE(control.outputs_enabled) << "the output enable command is untouched";
+
+  control.enable_switch_closed.store(true);
+  wait_for(following, 10s);
+  EXPECT_TRUE(following()) << "status " << output.status << ", open " << output.value;
+  pipeline.stop();
 }
 
 TEST_F(PipelineTest, SideCameraMeasuresProtrusionAndTheFrontCarriesOnWithoutIt) {

@@ -620,6 +620,7 @@ void read_outputs(Section outputs, Config& config) {
   g.fault_line = gpio.string("fault_line", "");
   g.calibrate_button = gpio.string("calibrate_button", "");
   g.record_button = gpio.string("record_button", "");
+  g.enable_switch = gpio.string("enable_switch", "");
   g.buttons_active_low = gpio.boolean("buttons_active_low", g.buttons_active_low);
   g.debounce_ms = gpio.integer("debounce_ms", g.debounce_ms, 0, 1000);
   gpio.reject_unknown_keys();

@@ -93,13 +93,16 @@ struct OscOutputOptions {
   int max_backoff_ms = 1000;          // retry delay doubles up to this while sends fail
 };
 
-/// [outputs.gpio]: status and fault lines, calibrate and record buttons (libgpiod).
+/// [outputs.gpio]: status and fault lines, calibrate and record buttons, the enable switch
+/// (libgpiod).
 struct GpioOptions {
   bool enabled = false;
   std::string chip = "gpiochip0";  // name or path
   /// A line by offset ("17") or by name ("GPIO17"); "" = not used.
   std::string status_line, fault_line, calibrate_button, record_button;
-  bool buttons_active_low = true;  // buttons pull the line to ground
+  /// Hold-to-run: the drive follows the face only while this input is active.
+  std::string enable_switch;
+  bool buttons_active_low = true;  // buttons and the enable switch pull the line to ground
   int debounce_ms = 30;
 };
 

@@ -273,7 +273,8 @@ void Pipeline::output_loop() {
 
     for (int i = 0; i < channels_.size(); ++i)
       channels_.set_override(i, control_.overrides[static_cast<std::size_t>(i)].load(std::memory_order_relaxed));
-    enabled = control_.outputs_enabled.load(std::memory_order_relaxed);
+    enabled = control_.outputs_enabled.load(std::memory_order_relaxed) &&
+              control_.enable_switch_closed.load(std::memory_order_relaxed);
     // A tracked result stops counting as tracking the moment the camera goes away or stops
     // delivering, not when the processing thread next publishes: the hold time starts there.
     connected = capture_.connected();

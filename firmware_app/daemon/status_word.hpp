@@ -17,7 +17,7 @@ enum StatusBit : std::uint16_t {
   kStatusFailSafe = 1 << 2,         // channels are held at or easing to neutral
   kStatusSideCamera = 1 << 3,       // a side camera delivers and protrusion comes from it
   kStatusRecording = 1 << 4,        // a take is being recorded
-  kStatusOutputsEnabled = 1 << 5,   // output enable (a Modbus control register) is on
+  kStatusOutputsEnabled = 1 << 5,   // output enable is on and the enable switch (if any) closed
   kStatusCameraConnected = 1 << 6,  // the front camera delivers frames
   kStatusModelMismatch = 1 << 7,    // performer and model differ by two mouth-height classes
 };

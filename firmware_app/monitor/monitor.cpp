@@ -450,7 +450,8 @@ std::shared_ptr<const std::string> Monitor::state_json() {
        {{"calibrate_requests", sources_.control.calibrate_requests.load()},
         {"calibrations", calibrations},
         {"recording_request", sources_.control.recording_request.load()},
-        {"outputs_enabled", sources_.control.outputs_enabled.load()}}},
+        {"outputs_enabled", sources_.control.outputs_enabled.load()},
+        {"enable_switch", sources_.control.enable_switch_closed.load()}}},
       {"timecode", drive.timecode >= 0
                        ? nlohmann::json(std::string(format_frame(drive.timecode, drive.timecode_rate).view()))
                        : nlohmann::json(nullptr)},

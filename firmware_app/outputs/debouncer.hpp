@@ -1,4 +1,4 @@
-// Turns the sampled level of a mechanical button into presses.
+// Turns the sampled level of a mechanical button or switch into presses and a steady level.
 //
 // It lives beside the GPIO output rather than in drivers/ (thin wrappers over hardware) or
 // core/ (the face method): it is the daemon's definition of what counts as a press, pure
@@ -33,6 +33,9 @@ class Debouncer {
     stable_ = candidate_;
     return stable_;
   }
+
+  /// The accepted level: the first sample's, then each change once it has held.
+  bool level() const { return stable_; }
 
   /// Forgets the level: the next sample is a new starting state (after the line was lost).
   void reset() { started_ = false; }

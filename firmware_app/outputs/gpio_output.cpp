@@ -25,6 +25,7 @@ std::string describe_lines(const GpioLines& lines, const GpioOptions& options) {
   add("fault", options.fault_line);
   add("calibrate", options.calibrate_button);
   add("record", options.record_button);
+  add("enable", options.enable_switch);
   return lines.describe() + " (" + (used.empty() ? "no lines" : used) + ")";
 }
 
@@ -38,7 +39,7 @@ std::unique_ptr<GpioLines> open_gpio_chip(const GpioOptions& options) {
   std::vector<GpioLineSpec> specs;
   for (const std::string* line : {&options.status_line, &options.fault_line})
     if (!line->empty()) specs.push_back({*line, GpioDirection::kOutput, false});
-  for (const std::string* line : {&options.calibrate_button, &options.record_button})
+  for (const std::string* line : {&options.calibrate_button, &options.record_button, &options.enable_switch})
     if (!line->empty()) specs.push_back({*line, GpioDirection::kInput, options.buttons_active_low});
   return open_gpiod_chip(options.chip, std::move(specs));
 }
@@ -50,9 +51,12 @@ GpioOutput::GpioOutput(const GpioOptions& options, std::unique_ptr<GpioLines> li
       fault_{options.fault_line, std::nullopt},
       calibrate_{options.calibrate_button, debouncer_for(options)},
       record_{options.record_button, debouncer_for(options)},
+      enable_{options.enable_switch, debouncer_for(options)},
       retry_(kRetryFirst, kRetryMax) {
   if (!lines_) throw std::invalid_argument("GpioOutput needs the lines of a chip");
   description_ = describe_lines(*lines_, options);
+  // Open until the first sample says otherwise.
+  if (!enable_.line.empty()) control_.enable_switch_closed.store(false);
 }
 
 void GpioOutput::publish(const DriveFrame& frame) {
@@ -64,6 +68,7 @@ void GpioOutput::publish(const DriveFrame& frame) {
     write(status_, tracking && !fail_safe);
     write(fault_, fail_safe || !camera);
     poll_buttons(frame.time_ns, frame.status & kStatusRecording);
+    poll_enable_switch(frame.time_ns);
   } catch (const std::exception& error) {
     lose_lines(error.what(), frame.time_ns);
   }
@@ -92,8 +97,23 @@ void GpioOutput::poll_buttons(std::int64_t now_ns, bool recording) {
   }
 }
 
+void GpioOutput::poll_enable_switch(std::int64_t now_ns) {
+  if (enable_.line.empty()) return;
+  enable_.debouncer.press(lines_->read_input(enable_.line), now_ns);
+  set_enable_switch(enable_.debouncer.level(), "open");
+}
+
+void GpioOutput::set_enable_switch(bool closed, const char* why) {
+  if (enable_.line.empty() || control_.enable_switch_closed.exchange(closed) == closed) return;
+  if (closed)
+    spdlog::info("{}: enable switch closed: the drive follows the face", description_);
+  else
+    spdlog::warn("{}: enable switch {}: the drive eases to neutral", description_, why);
+}
+
 void GpioOutput::lose_lines(const char* error, std::int64_t now_ns) {
   spdlog::error("{}: {}; retrying in the background", description_, error);
+  set_enable_switch(false, "unreadable");
   healthy_.store(false);
   retry_.succeeded();  // every outage starts at the first delay
   next_retry_ns_ = now_ns + retry_.failed().count();
@@ -114,6 +134,7 @@ bool GpioOutput::reopen_lines(std::int64_t now_ns) {
   fault_.written.reset();
   calibrate_.debouncer.reset();
   record_.debouncer.reset();
+  enable_.debouncer.reset();
   healthy_.store(true);
   return true;
 }

@@ -1,5 +1,5 @@
-// The GPIO output (docs/data-flow.md): a status line (tracking OK), a fault line, and the
-// calibrate and record buttons.
+// The GPIO output (docs/data-flow.md): a status line (tracking OK), a fault line, the
+// calibrate and record buttons, and the enable switch.
 //
 // Lines: status is active while the newest frame is tracked and the fail-safe is off; fault
 // is active while the fail-safe holds the channels or the camera delivers nothing (the
@@ -10,6 +10,11 @@
 // and on idle ticks (at least 50 Hz), and debounced on the frame's CLOCK_MONOTONIC time.
 // A calibrate press adds one calibrate request; a record press asks to stop a take when the
 // frame's status word reports one recording and to start one otherwise.
+//
+// The enable switch is hold-to-run: DriveControl::enable_switch_closed follows its debounced
+// level, and the drive eases to neutral while it is open. It reads open from construction
+// until its first sample, and while its chip is lost: a switch that cannot be read does not
+// let the figure move.
 //
 // Errors: a failing line (chip unplugged, driver error) is logged once, healthy() turns
 // false and the chip is reopened with exponential back-off (core/backoff.hpp, 100 ms up to
@@ -65,6 +70,9 @@ class GpioOutput final : public Output {
   bool pressed(Button& button, std::int64_t now_ns);
   /// `recording`: the frame's status word says a take is being recorded.
   void poll_buttons(std::int64_t now_ns, bool recording);
+  void poll_enable_switch(std::int64_t now_ns);
+  /// Tells the pipeline whether the enable switch is closed, and logs a change (`why` it is not).
+  void set_enable_switch(bool closed, const char* why);
   void lose_lines(const char* error, std::int64_t now_ns);
   bool reopen_lines(std::int64_t now_ns);
 
@@ -72,7 +80,7 @@ class GpioOutput final : public Output {
   DriveControl& control_;
   std::string description_;
   OutputLine status_, fault_;
-  Button calibrate_, record_;
+  Button calibrate_, record_, enable_;
 
   std::atomic<bool> healthy_{true};
   Backoff retry_;  // reopening the chip after its lines were lost

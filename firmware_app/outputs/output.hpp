@@ -65,7 +65,10 @@ struct DriveControl {
   DriveControl() {
     for (auto& value : overrides) value.store(ChannelBank::kNoOverride);
   }
+  /// The drive follows the face only while both are true: the output enable command (Modbus,
+  /// OSC, monitor) and the GPIO enable switch (held closed; true while none is configured).
   std::atomic<bool> outputs_enabled{true};
+  std::atomic<bool> enable_switch_closed{true};
   /// Per channel: a manual value in output units, or ChannelBank::kNoOverride (NaN).
   std::array<std::atomic<double>, kMaxChannels> overrides;
   std::atomic<std::uint32_t> calibrate_requests{0};  // +1 per request; acted on when it changes
