@@ -43,7 +43,7 @@ TEST(DaemonOsc, EveryDriveFrameIsOneBundleAndRemoteCommandsTakeEffect) {
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << test::sim_camera_at_60_fps()
                         << fmt::format(R"([status]
-print_interval_ms = 0
+print_interval_ms = 250
 [recording]
 dir = "{}"
 [[channels]]
@@ -141,6 +141,7 @@ port = {}
 
   ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 0), 0);
   EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusOutputsEnabled) == 0; }, 3s));
+  EXPECT_TRUE(daemon.wait_for_log(", outputs disabled", 3s)) << "the status line says why the figure rests";
   ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 1), 0);
   EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusOutputsEnabled) != 0; }, 3s));
   ASSERT_GT(lo_send(to, "/lipdrive/calibrate", ""), 0);

@@ -165,6 +165,8 @@ void Daemon::report_status() {
     if (const std::string problem = voice_->problem(); !problem.empty()) warnings += ", " + problem;
   DriveFrame drive;
   pipeline_->latest_drive(drive);
+  if (drive.counter > 0 && !(drive.status & kStatusOutputsEnabled))
+    warnings += control_.outputs_enabled.load() ? ", enable switch open" : ", outputs disabled";
   const std::string timecode =
       latest.timecode >= 0 && timecode_
           ? fmt::format(", timecode {}", format_frame(latest.timecode, timecode_->rate()).view())
