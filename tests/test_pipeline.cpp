@@ -379,16 +379,22 @@ class OutageWatch : public Output {
   double neutral_;
 };
 
+/// One channel, "open": the signal (0..1) maps to 0..500 and neutral sits at 1000, which only
+/// the fail-safe reaches; hold 200 ms, ease 300 ms.
+PipelineSettings neutral_out_of_reach() {
+  PipelineSettings settings;
+  settings.channels = {ChannelSpec{
+      .name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
+  settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
+  return settings;
+}
+
 TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   SimulatedCameraOptions options = clip_options();
   options.real_time = true;
   options.faults.disconnect_after = 40;
   options.faults.reconnect = 1500ms;
-  PipelineSettings settings;
-  // The signal (0..1) maps to 0..500; neutral sits at 1000, which only the fail-safe reaches.
-  settings.channels = {ChannelSpec{
-      .name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
-  settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
+  const PipelineSettings settings = neutral_out_of_reach();
   DriveControl control;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
   OutageWatch watch(1000);
@@ -409,11 +415,7 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
 TEST_F(PipelineTest, AnOpenEnableSwitchEasesTheDriveToNeutralAndClosingItFollowsAgain) {
   SimulatedCameraOptions options = clip_options();
   options.real_time = true;
-  PipelineSettings settings;
-  // The signal (0..1) maps to 0..500; neutral sits at 1000, which only the fail-safe reaches.
-  settings.channels = {ChannelSpec{
-      .name = "open", .signal = Signal::kOpen, .in_max = 2, .out_min = 0, .out_max = 1000, .neutral = 1000}};
-  settings.safety = {.hold_ns = 200'000'000, .ease_ns = 300'000'000};
+  const PipelineSettings settings = neutral_out_of_reach();
   DriveControl control;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
   RecordingOutput output;
