@@ -16,6 +16,37 @@ constexpr const char* kConsumer = "lipdrive";
 /// libgpiod v1 reports failures as std::system_error carrying errno.
 int error_code_of(const std::system_error& error) { return error.code().value(); }
 
+[[noreturn]] void fail(const std::string& chip, const std::string& reason) {
+  throw GpioError("gpio chip " + chip + ": " + reason);
+}
+
+gpiod::chip open_chip(const std::string& name) {
+  gpiod::chip chip;
+  try {
+    chip.open(name, gpiod::chip::OPEN_LOOKUP);
+  } catch (const std::system_error& error) {
+    const int code = error_code_of(error);
+    if (code == ENOENT) fail(name, "no such chip");
+    if (code == ENOTTY || code == EINVAL || code == ENODEV) fail(name, "not a GPIO chip");
+    fail(name, "cannot open: " + error.code().message());
+  }
+  return chip;
+}
+
+/// `line`: an offset ("17") or a line name ("GPIO17") on `chip`, opened as `chip_name`.
+gpiod::line find_line(const gpiod::chip& chip, const std::string& chip_name, const std::string& line) {
+  unsigned offset = 0;
+  const char* end = line.data() + line.size();
+  if (!line.empty() && std::from_chars(line.data(), end, offset).ptr == end) {
+    if (offset >= chip.num_lines())
+      fail(chip_name, "line " + line + ": no such offset (the chip has " + std::to_string(chip.num_lines()) + " lines)");
+    return chip.get_line(offset);
+  }
+  gpiod::line found = chip.find_line(line);
+  if (!found) fail(chip_name, "no line named \"" + line + "\"");
+  return found;
+}
+
 /// Lines of a chip opened with libgpiod 1.6: the chip and the requested line handles.
 ///
 /// Closing the chip (dropping its last reference: `chip` and every gpiod::line hold one)
@@ -56,9 +87,7 @@ class GpiodChipLines final : public GpioLines {
     gpiod::line line;
   };
 
-  [[noreturn]] void fail(const std::string& reason) const {
-    throw GpioError("gpio chip " + chip_name_ + ": " + reason);
-  }
+  [[noreturn]] void fail(const std::string& reason) const { lipdrive::fail(chip_name_, reason); }
 
   void close() {
     requested_.clear();
@@ -68,15 +97,7 @@ class GpiodChipLines final : public GpioLines {
   /// Builds the new state in locals and keeps it only when every line was requested: a
   /// failure half-way closes the chip and with it the lines requested so far.
   void open() {
-    gpiod::chip chip;
-    try {
-      chip.open(chip_name_, gpiod::chip::OPEN_LOOKUP);
-    } catch (const std::system_error& error) {
-      const int code = error_code_of(error);
-      if (code == ENOENT) fail("no such chip");
-      if (code == ENOTTY || code == EINVAL || code == ENODEV) fail("not a GPIO chip");
-      fail("cannot open: " + error.code().message());
-    }
+    gpiod::chip chip = open_chip(chip_name_);
     std::vector<Requested> requested;
     try {
       for (const GpioLineSpec& spec : specs_) requested.push_back({spec, request(chip, spec)});
@@ -88,21 +109,8 @@ class GpiodChipLines final : public GpioLines {
     requested_ = std::move(requested);
   }
 
-  gpiod::line find(const gpiod::chip& chip, const std::string& line) const {
-    unsigned offset = 0;
-    const char* end = line.data() + line.size();
-    if (!line.empty() && std::from_chars(line.data(), end, offset).ptr == end) {
-      if (offset >= chip.num_lines())
-        fail("line " + line + ": no such offset (the chip has " + std::to_string(chip.num_lines()) + " lines)");
-      return chip.get_line(offset);
-    }
-    gpiod::line found = chip.find_line(line);
-    if (!found) fail("no line named \"" + line + "\"");
-    return found;
-  }
-
   gpiod::line request(const gpiod::chip& chip, const GpioLineSpec& spec) const {
-    gpiod::line line = find(chip, spec.line);
+    gpiod::line line = find_line(chip, chip_name_, spec.line);
     gpiod::line_request config;
     config.consumer = kConsumer;
     config.request_type = spec.direction == GpioDirection::kOutput ? gpiod::line_request::DIRECTION_OUTPUT
@@ -137,6 +145,19 @@ class GpiodChipLines final : public GpioLines {
 
 std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip, std::vector<GpioLineSpec> lines) {
   return std::make_unique<GpiodChipLines>(chip, std::move(lines));
+}
+
+void check_gpiod_chip(const std::string& chip, const std::vector<GpioLineSpec>& lines) {
+  const gpiod::chip opened = open_chip(chip);
+  try {
+    for (const GpioLineSpec& spec : lines) {
+      const gpiod::line line = find_line(opened, chip, spec.line);
+      if (line.is_used() && line.consumer() != kConsumer)
+        fail(chip, "line " + spec.line + ": busy (used by \"" + line.consumer() + "\")");
+    }
+  } catch (const std::system_error& error) {
+    fail(chip, "cannot look up the lines: " + error.code().message());
+  }
 }
 
 }  // namespace lipdrive

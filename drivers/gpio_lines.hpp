@@ -53,4 +53,10 @@ class GpioLines {
 /// line (no such chip, not a GPIO chip, no such line, line busy).
 std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip, std::vector<GpioLineSpec> lines);
 
+/// Opens the chip and looks every line up without requesting it (`lipdrive check-config`):
+/// throws GpioError as open_gpiod_chip() would for a missing chip, a device that is no GPIO
+/// chip, a line that is not there or one another program holds. A line held under lipdrive's
+/// own consumer name (the running daemon) passes.
+void check_gpiod_chip(const std::string& chip, const std::vector<GpioLineSpec>& lines);
+
 }  // namespace lipdrive

@@ -327,5 +327,16 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   EXPECT_EQ(run_lipdrive("check-config " + (dir_ / "none.toml").string()).exit_code, 78);
 }
 
+TEST_F(ConfigTest, CheckConfigLooksUpTheGpioChip) {
+  // This machine has no GPIO chip: the daemon would stop at start with exit 78, and so does
+  // the check. Without [outputs.gpio] enabled the chip is not looked for.
+  write("", "[outputs.gpio]\nenabled = true\nchip = \"gpiochip7\"\nenable_switch = \"GPIO24\"\n");
+  const test::CommandRun run = run_lipdrive("check-config " + file_.string());
+  EXPECT_EQ(run.exit_code, 78) << run.output;
+  EXPECT_THAT(run.output, HasSubstr(file_.string() + ": key outputs.gpio: gpio chip gpiochip7: no such chip"));
+  write("", "[outputs.gpio]\nenabled = false\nchip = \"gpiochip7\"\n");
+  EXPECT_EQ(run_lipdrive("check-config " + file_.string()).exit_code, 0);
+}
+
 }  // namespace
 }  // namespace lipdrive

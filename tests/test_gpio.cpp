@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -20,7 +21,9 @@ namespace {
 using testing::CapturedLog;
 
 constexpr std::int64_t kMs = 1'000'000;
-constexpr std::uint16_t kTrackingOk = kStatusTracking | kStatusCameraConnected;
+/// A connected camera on an enabled drive, and with a tracked face.
+constexpr std::uint16_t kCamera = kStatusCameraConnected | kStatusOutputsEnabled;
+constexpr std::uint16_t kTrackingOk = kStatusTracking | kCamera;
 
 /// What the fake chip's lines hold; the test keeps it while the output owns the fake.
 struct FakeChip {
@@ -190,11 +193,11 @@ TEST_F(GpioOutputTest, StatusAndFaultLinesFollowTheDriveFrame) {
   EXPECT_TRUE(chip.outputs["17"]);
   EXPECT_FALSE(chip.outputs["27"]);
 
-  output.publish(frame_at(20 * kMs, kStatusCameraConnected));  // face lost, fail-safe not yet
+  output.publish(frame_at(20 * kMs, kCamera));  // face lost, fail-safe not yet
   EXPECT_FALSE(chip.outputs["17"]);
   EXPECT_FALSE(chip.outputs["27"]);
 
-  output.publish(frame_at(40 * kMs, kStatusCameraConnected | kStatusFailSafe));
+  output.publish(frame_at(40 * kMs, kCamera | kStatusFailSafe));
   EXPECT_FALSE(chip.outputs["17"]);
   EXPECT_TRUE(chip.outputs["27"]);
 
@@ -202,12 +205,19 @@ TEST_F(GpioOutputTest, StatusAndFaultLinesFollowTheDriveFrame) {
   EXPECT_FALSE(chip.outputs["17"]) << "tracking but still in fail-safe is not OK";
   EXPECT_TRUE(chip.outputs["27"]);
 
-  output.publish(frame_at(80 * kMs, kStatusTracking));  // the camera just went away
+  output.publish(frame_at(80 * kMs, kStatusTracking | kStatusOutputsEnabled));  // the camera just went away
   EXPECT_TRUE(chip.outputs["27"]);
 
   output.publish(frame_at(100 * kMs, kTrackingOk));
   EXPECT_TRUE(chip.outputs["17"]);
   EXPECT_FALSE(chip.outputs["27"]);
+
+  // Outputs disabled (the command or the enable switch): the drive rests, on purpose.
+  output.publish(frame_at(120 * kMs, kStatusTracking | kStatusCameraConnected | kStatusFailSafe));
+  EXPECT_FALSE(chip.outputs["17"]);
+  EXPECT_FALSE(chip.outputs["27"]) << "a drive disabled on purpose is no fault";
+  output.publish(frame_at(140 * kMs, kStatusTracking | kStatusFailSafe));  // and the camera went away
+  EXPECT_TRUE(chip.outputs["27"]);
 }
 
 TEST_F(GpioOutputTest, WritesOutputLinesOnlyWhenTheyChange) {
@@ -215,7 +225,7 @@ TEST_F(GpioOutputTest, WritesOutputLinesOnlyWhenTheyChange) {
   EXPECT_EQ(chip.writes, 2) << "the first publish writes both lines";
   for (int i = 1; i <= 50; ++i) output.publish(frame_at(i * 20 * kMs));
   EXPECT_EQ(chip.writes, 2);
-  output.publish(frame_at(1100 * kMs, kStatusCameraConnected));
+  output.publish(frame_at(1100 * kMs, kCamera));
   EXPECT_EQ(chip.writes, 3) << "only the status line changed";
 }
 
@@ -227,14 +237,13 @@ TEST_F(GpioOutputTest, ALostChipIsLoggedOnceRetriedWithBackOffAndRecovers) {
   chip.present = false;
   chip.inputs["GPIO22"] = true;  // held through the outage: must not count as a press
   std::int64_t now = 20 * kMs;
-  EXPECT_NO_THROW(output.publish(frame_at(now, kStatusCameraConnected)));
+  EXPECT_NO_THROW(output.publish(frame_at(now, kCamera)));
   EXPECT_FALSE(output.healthy());
   EXPECT_EQ(chip.reopens, 0) << "the first retry waits for the back-off";
 
   // Ticks up to 3 s: retries at 120, 320, 720 and 1520 ms (the back-off doubles from 100 ms),
   // the next one is due at 3120 ms.
-  for (now += 20 * kMs; now < 3020 * kMs; now += 20 * kMs)
-    EXPECT_NO_THROW(output.publish(frame_at(now, kStatusCameraConnected)));
+  for (now += 20 * kMs; now < 3020 * kMs; now += 20 * kMs) EXPECT_NO_THROW(output.publish(frame_at(now, kCamera)));
   EXPECT_EQ(chip.reopens, 4) << "back-off doubles: retries do not come every tick";
   EXPECT_FALSE(output.healthy());
   EXPECT_EQ(log.count(spdlog::level::err), 1) << "the loss is logged once, not per retry";
@@ -371,6 +380,22 @@ TEST(GpiodChipLines, AMissingChipIsAnErrorNamingIt) {
     } catch (const GpioError& error) {
       EXPECT_EQ(std::string(error.what()), "gpio chip " + chip + ": no such chip");
     }
+  }
+}
+
+TEST(GpiodChipLines, CheckingNamesAMissingChipOrADeviceThatIsNone) {
+  const std::vector<GpioLineSpec> lines = {{"17", GpioDirection::kOutput, false}};
+  try {
+    check_gpiod_chip("gpiochip7", lines);
+    ADD_FAILURE() << "gpiochip7 checked";
+  } catch (const GpioError& error) {
+    EXPECT_EQ(std::string(error.what()), "gpio chip gpiochip7: no such chip");
+  }
+  try {
+    check_gpiod_chip("/dev/null", lines);
+    ADD_FAILURE() << "/dev/null checked as a GPIO chip";
+  } catch (const GpioError& error) {
+    EXPECT_EQ(std::string(error.what()), "gpio chip /dev/null: not a GPIO chip");
   }
 }
 

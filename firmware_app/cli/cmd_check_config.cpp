@@ -14,10 +14,11 @@ void add_check_config_command(CLI::App& app) {
   auto file = std::make_shared<std::filesystem::path>();
   CLI::App* check = app.add_subcommand(
       "check-config",
-      "Validate a configuration file without starting anything (audio devices are opened once to check them)");
+      "Validate a configuration file without starting anything (audio devices are opened once, GPIO lines "
+      "looked up)");
   check->add_option("FILE", *file, "configuration file")->required();
   check->callback([file] {
-    check_audio_inputs(load_config(*file));
+    check_devices(load_config(*file));
     fmt::print("{}: ok\n", file->string());
   });
 }

@@ -33,16 +33,22 @@ Debouncer debouncer_for(const GpioOptions& options) {
   return Debouncer(std::int64_t{std::max(options.debounce_ms, 0)} * 1'000'000);
 }
 
-}  // namespace
-
-std::unique_ptr<GpioLines> open_gpio_chip(const GpioOptions& options) {
+std::vector<GpioLineSpec> line_specs(const GpioOptions& options) {
   std::vector<GpioLineSpec> specs;
   for (const std::string* line : {&options.status_line, &options.fault_line})
     if (!line->empty()) specs.push_back({*line, GpioDirection::kOutput, false});
   for (const std::string* line : {&options.calibrate_button, &options.record_button, &options.enable_switch})
     if (!line->empty()) specs.push_back({*line, GpioDirection::kInput, options.buttons_active_low});
-  return open_gpiod_chip(options.chip, std::move(specs));
+  return specs;
 }
+
+}  // namespace
+
+std::unique_ptr<GpioLines> open_gpio_chip(const GpioOptions& options) {
+  return open_gpiod_chip(options.chip, line_specs(options));
+}
+
+void check_gpio_chip(const GpioOptions& options) { check_gpiod_chip(options.chip, line_specs(options)); }
 
 GpioOutput::GpioOutput(const GpioOptions& options, std::unique_ptr<GpioLines> lines, DriveControl& control)
     : lines_(std::move(lines)),
@@ -65,8 +71,9 @@ void GpioOutput::publish(const DriveFrame& frame) {
     const bool tracking = frame.status & kStatusTracking;
     const bool fail_safe = frame.status & kStatusFailSafe;
     const bool camera = frame.status & kStatusCameraConnected;
+    const bool enabled = frame.status & kStatusOutputsEnabled;
     write(status_, tracking && !fail_safe);
-    write(fault_, fail_safe || !camera);
+    write(fault_, (fail_safe && enabled) || !camera);
     poll_buttons(frame.time_ns, frame.status & kStatusRecording);
     poll_enable_switch(frame.time_ns);
   } catch (const std::exception& error) {

@@ -2,8 +2,9 @@
 // calibrate and record buttons, and the enable switch.
 //
 // Lines: status is active while the newest frame is tracked and the fail-safe is off; fault
-// is active while the fail-safe holds the channels or the camera delivers nothing (the
-// fail-safe only engages after its hold time; an unplugged camera shows at once). Output
+// is active while the fail-safe holds the channels of an enabled drive or the camera delivers
+// nothing (the fail-safe only engages after its hold time; an unplugged camera shows at once;
+// a drive disabled on purpose, by the command or the enable switch, is no fault). Output
 // lines are written only when their level changes.
 //
 // Buttons are sampled on every publish(), which the output thread calls for every result
@@ -44,6 +45,8 @@ namespace lipdrive {
 /// the buttons as inputs, active-low if `buttons_active_low`); unused lines ("") are not
 /// requested. Throws GpioError naming the chip and the line.
 std::unique_ptr<GpioLines> open_gpio_chip(const GpioOptions& options);
+/// Looks up the chip and the configured lines without requesting them (check_gpiod_chip).
+void check_gpio_chip(const GpioOptions& options);
 
 class GpioOutput final : public Output {
  public:
