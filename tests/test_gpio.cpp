@@ -74,6 +74,13 @@ GpioOptions all_lines() {
   return options;
 }
 
+/// Every line, and the enable switch (hold-to-run) on GPIO24.
+GpioOptions all_lines_and_switch() {
+  GpioOptions options = all_lines();
+  options.enable_switch = "GPIO24";
+  return options;
+}
+
 DriveFrame frame_at(std::int64_t time_ns, std::uint16_t status = kTrackingOk) {
   DriveFrame frame;
   frame.time_ns = time_ns;
@@ -85,7 +92,7 @@ class GpioOutputTest : public ::testing::Test {
  protected:
   GpioOutputTest() {
     chip.outputs = {{"17", false}, {"27", false}};
-    chip.inputs = {{"GPIO22", false}, {"GPIO23", false}};
+    chip.inputs = {{"GPIO22", false}, {"GPIO23", false}, {"GPIO24", false}};
   }
 
   /// Publishes every 20 ms (the slowest the output thread ticks) from `from_ns` until
@@ -103,10 +110,12 @@ class GpioOutputTest : public ::testing::Test {
     return hold(button, false, released, released + 100 * kMs);
   }
 
+  bool enabled() const { return control.enable_switch_closed.load(); }
+
   std::uint16_t status = kTrackingOk;  // the status word of the frames hold() publishes
   FakeChip chip;
   DriveControl control;
-  GpioOutput output{all_lines(), std::make_unique<FakeGpioLines>(chip), control};
+  GpioOutput output{all_lines_and_switch(), std::make_unique<FakeGpioLines>(chip), control};
 };
 
 TEST(Debouncer, ReportsAPressOnceTheLevelHeldForTheDebounceTime) {
@@ -279,84 +288,56 @@ TEST(GpioOutput, DescribeNamesTheChipAndTheLines) {
   EXPECT_EQ(output.describe(), "gpio fake (status 17, fault 27, calibrate GPIO22, record GPIO23)");
 }
 
-/// The enable switch (hold-to-run) on GPIO24 beside every other line.
-class EnableSwitchTest : public ::testing::Test {
- protected:
-  static GpioOptions with_switch() {
-    GpioOptions options = all_lines();
-    options.enable_switch = "GPIO24";
-    return options;
-  }
-  EnableSwitchTest() {
-    chip.outputs = {{"17", false}, {"27", false}};
-    chip.inputs = {{"GPIO22", false}, {"GPIO23", false}, {"GPIO24", false}};
-  }
-
-  /// Publishes every 20 ms from `from_ns` until before `to_ns` with the switch at `closed`;
-  /// returns the next tick's time.
-  std::int64_t hold(bool closed, std::int64_t from_ns, std::int64_t to_ns) {
-    chip.inputs["GPIO24"] = closed;
-    std::int64_t now = from_ns;
-    for (; now < to_ns; now += 20 * kMs) output.publish(frame_at(now));
-    return now;
-  }
-  bool enabled() const { return control.enable_switch_closed.load(); }
-
-  FakeChip chip;
-  DriveControl control;
-  GpioOutput output{with_switch(), std::make_unique<FakeGpioLines>(chip), control};
-};
-
-TEST_F(EnableSwitchTest, TheDriveWaitsForTheFirstReadingOfTheSwitch) {
+TEST_F(GpioOutputTest, EnableSwitchTheDriveWaitsForTheFirstReadingOfTheSwitch) {
   EXPECT_FALSE(enabled()) << "open from construction until the switch is read";
   EXPECT_EQ(output.describe(), "gpio fake (status 17, fault 27, calibrate GPIO22, record GPIO23, enable GPIO24)");
-  hold(true, 0, 1);
+  hold("GPIO24", true, 0, 1);
   EXPECT_TRUE(enabled()) << "closed at the first sample: no debounce wait at start";
 }
 
-TEST_F(EnableSwitchTest, OpenAtStartKeepsTheDriveDisabledUntilClosed) {
-  std::int64_t now = hold(false, 0, 500 * kMs);
+TEST_F(GpioOutputTest, EnableSwitchOpenAtStartKeepsTheDriveDisabledUntilClosed) {
+  std::int64_t now = hold("GPIO24", false, 0, 500 * kMs);
   EXPECT_FALSE(enabled());
-  now = hold(true, now, now + 20 * kMs);
+  now = hold("GPIO24", true, now, now + 20 * kMs);
   EXPECT_FALSE(enabled()) << "closed for less than the debounce time";
-  hold(true, now, now + 40 * kMs);
+  hold("GPIO24", true, now, now + 40 * kMs);
   EXPECT_TRUE(enabled());
 }
 
-TEST_F(EnableSwitchTest, ReleasingDisablesOnceTheReleaseHeldForTheDebounceTime) {
+TEST_F(GpioOutputTest, EnableSwitchReleasingDisablesOnceTheReleaseHeldForTheDebounceTime) {
   CapturedLog log;
-  std::int64_t now = hold(true, 0, 100 * kMs);
+  std::int64_t now = hold("GPIO24", true, 0, 100 * kMs);
   ASSERT_TRUE(enabled());
   // Contact bounce: open for one 20 ms tick at a time, 40 ms apart.
   for (int bounce = 0; bounce < 10; ++bounce) {
-    now = hold(false, now, now + 20 * kMs);
-    now = hold(true, now, now + 40 * kMs);
+    now = hold("GPIO24", false, now, now + 20 * kMs);
+    now = hold("GPIO24", true, now, now + 40 * kMs);
     EXPECT_TRUE(enabled()) << "bounce " << bounce;
   }
-  now = hold(false, now, now + 60 * kMs);
+  now = hold("GPIO24", false, now, now + 60 * kMs);
   EXPECT_FALSE(enabled()) << "released for 60 ms, debounce 30 ms";
   EXPECT_EQ(log.count(spdlog::level::warn), 1) << "the release is logged";
-  hold(true, now, now + 60 * kMs);
+  hold("GPIO24", true, now, now + 60 * kMs);
   EXPECT_TRUE(enabled());
   EXPECT_EQ(control.calibrate_requests.load(), 0u) << "the switch is not a button";
   EXPECT_EQ(control.recording_request.load(), -1);
 }
 
-TEST_F(EnableSwitchTest, ALostChipOpensTheSwitchUntilItIsReadClosedAgain) {
-  std::int64_t now = hold(true, 0, 100 * kMs);
+TEST_F(GpioOutputTest, EnableSwitchALostChipOpensTheSwitchUntilItIsReadClosedAgain) {
+  std::int64_t now = hold("GPIO24", true, 0, 100 * kMs);
   ASSERT_TRUE(enabled());
   chip.present = false;
-  now = hold(true, now, now + 20 * kMs);
+  now = hold("GPIO24", true, now, now + 20 * kMs);
   EXPECT_FALSE(output.healthy());
   EXPECT_FALSE(enabled()) << "a switch that cannot be read does not let the figure move";
   // The chip back after 1 s (the retry due 1.5 s after the loss reopens it), the switch
   // released meanwhile.
-  now = hold(true, now, now + 1000 * kMs);
+  now = hold("GPIO24", true, now, now + 1000 * kMs);
   chip.present = true;
-  now = hold(false, now, now + 1000 * kMs);
+  now = hold("GPIO24", false, now, now + 1000 * kMs);
   ASSERT_TRUE(output.healthy());
   EXPECT_FALSE(enabled()) << "read open after the reopen";
-  hold(true, now, now + 60 * kMs);
+  hold("GPIO24", true, now, now + 60 * kMs);
   EXPECT_TRUE(enabled());
 }
 

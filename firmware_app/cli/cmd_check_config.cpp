@@ -2,6 +2,7 @@
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
+#include "firmware_app/outputs/make_outputs.hpp"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -18,7 +19,9 @@ void add_check_config_command(CLI::App& app) {
       "looked up)");
   check->add_option("FILE", *file, "configuration file")->required();
   check->callback([file] {
-    check_devices(load_config(*file));
+    const Config config = load_config(*file);
+    check_audio_inputs(config);
+    check_outputs(config);
     fmt::print("{}: ok\n", file->string());
   });
 }

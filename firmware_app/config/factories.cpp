@@ -10,7 +10,6 @@
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
 #include "firmware_app/daemon/rotated_camera.hpp"
-#include "firmware_app/outputs/gpio_output.hpp"
 #include "sim/ltc_generator.hpp"
 #include "sim/simulated_audio.hpp"
 #include "sim/simulated_camera.hpp"
@@ -171,7 +170,7 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   }
 }
 
-void check_devices(const Config& config) {
+void check_audio_inputs(const Config& config) {
   const auto probe = [&config](AlsaCaptureOptions options, std::string_view key) {
     options.must_open = true;
     try {
@@ -185,13 +184,6 @@ void check_devices(const Config& config) {
     probe(timecode.alsa, "timecode.device");
   if (config.voice.enabled && config.voice.input == Config::Voice::Input::kAlsa)
     probe(config.voice.alsa, "voice.device");
-  if (config.outputs.gpio.enabled) {
-    try {
-      check_gpio_chip(config.outputs.gpio);
-    } catch (const GpioError& e) {
-      throw ConfigError(fmt::format("{}: key outputs.gpio: {}", config.file.string(), e.what()));
-    }
-  }
 }
 
 }  // namespace lipdrive

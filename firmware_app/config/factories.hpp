@@ -35,11 +35,10 @@ std::unique_ptr<SideCamera> make_side_camera(const Config& config);
 /// The [timecode] source, or nullptr when frames are not stamped.
 std::unique_ptr<TimecodeSource> make_timecode(const Config& config);
 
-/// For `lipdrive check-config`: opens, once, the audio inputs the configuration names (ALSA
-/// devices for LTC and the voice), which the daemon itself does not insist on at start (a
-/// device may appear later), and looks up the GPIO chip and lines, which it does insist on.
-/// Throws ConfigError naming the file, the key and the device.
-void check_devices(const Config& config);
+/// Opens, once, the audio inputs the configuration names (ALSA devices for LTC and the voice), which the
+/// daemon itself does not insist on at start (a device may appear later): for
+/// `lipdrive check-config`. Throws ConfigError naming the file, the key and the device.
+void check_audio_inputs(const Config& config);
 
 /// The profile of [performer] name (the uncalibrated defaults when no performer is named).
 /// Throws CommandError naming the file when it is missing or malformed.

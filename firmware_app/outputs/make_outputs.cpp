@@ -10,6 +10,20 @@
 #include <fmt/format.h>
 
 namespace lipdrive {
+namespace {
+
+/// Runs `open` (opening or checking [outputs.gpio]); a GpioError, which can never work on
+/// this machine, becomes the configuration's error naming the key.
+template <typename Open>
+auto gpio_key(const Config& config, Open&& open) {
+  try {
+    return open();
+  } catch (const GpioError& e) {
+    throw ConfigError(fmt::format("{}: key outputs.gpio: {}", config.file.string(), e.what()));
+  }
+}
+
+}  // namespace
 
 std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveControl& control) {
   std::vector<std::unique_ptr<Output>> outputs;
@@ -28,15 +42,15 @@ std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveCon
       throw ConfigError(fmt::format("{}: key outputs.osc: {}", config.file.string(), e.what()));
     }
   }
-  if (config.outputs.gpio.enabled) {
-    try {
-      outputs.push_back(
-          std::make_unique<GpioOutput>(config.outputs.gpio, open_gpio_chip(config.outputs.gpio), control));
-    } catch (const GpioError& e) {
-      throw ConfigError(fmt::format("{}: key outputs.gpio: {}", config.file.string(), e.what()));
-    }
-  }
+  if (config.outputs.gpio.enabled)
+    outputs.push_back(gpio_key(config, [&] {
+      return std::make_unique<GpioOutput>(config.outputs.gpio, open_gpio_chip(config.outputs.gpio), control);
+    }));
   return outputs;
+}
+
+void check_outputs(const Config& config) {
+  if (config.outputs.gpio.enabled) gpio_key(config, [&] { check_gpio_chip(config.outputs.gpio); });
 }
 
 }  // namespace lipdrive

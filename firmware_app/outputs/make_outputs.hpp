@@ -16,4 +16,8 @@ namespace lipdrive {
 /// that does not exist) throws ConfigError.
 std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveControl& control);
 
+/// For `lipdrive check-config`: what make_outputs() would refuse, found without claiming
+/// anything (the GPIO chip and lines looked up, not requested). Throws ConfigError.
+void check_outputs(const Config& config);
+
 }  // namespace lipdrive
