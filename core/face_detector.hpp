@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace lipdrive {
@@ -57,6 +58,35 @@ class FaceDetector {
   struct Hog;  // dlib::frontal_face_detector, kept out of this header
   explicit FaceDetector(std::unique_ptr<Hog> hog);
   std::unique_ptr<Hog> hog_;
+};
+
+/// A second detector for photographs in which dlib's finds no face: OpenCV's cascade of boosted
+/// Haar-like features (Viola & Jones, "Rapid Object Detection using a Boosted Cascade of Simple
+/// Features", CVPR 2001; the extended feature set of Lienhart & Maydt, ICIP 2002, in Debian's
+/// opencv-data: haarcascade_frontalface_alt2.xml), run on the histogram-equalised image. It
+/// finds a face half in shadow, which the HOG filters miss (docs/method.md 1, "A face the HOG
+/// detector misses"). Its boxes are moved to the HOG detector's convention, which the landmark
+/// predictor was trained on.
+class CascadeFaceDetector {
+ public:
+  /// The cascade in `xml`, the text of one of OpenCV's cascade files. Throws
+  /// std::runtime_error when it holds none.
+  explicit CascadeFaceDetector(std::shared_ptr<const std::string> xml);
+  /// A copy works on a cascade of its own (detection keeps scratch inside it): it reads the
+  /// text again.
+  CascadeFaceDetector(const CascadeFaceDetector& other);
+  CascadeFaceDetector& operator=(const CascadeFaceDetector&) = delete;
+  ~CascadeFaceDetector();
+
+  /// The faces in the luma image `gray` (CV_8UC1) at least `min_width` pixels wide, as upright
+  /// boxes where dlib's detector would put them, largest first. Allocates (it runs only on a
+  /// still in which dlib's detector found nothing).
+  std::vector<FaceBox> detect(const cv::Mat& gray, double min_width);
+
+ private:
+  struct Cascade;  // cv::CascadeClassifier, kept out of this header
+  std::shared_ptr<const std::string> xml_;
+  std::unique_ptr<Cascade> cascade_;
 };
 
 }  // namespace lipdrive

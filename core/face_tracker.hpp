@@ -6,7 +6,9 @@
 // stays in place; the box turns with a head rolled beyond kUprightRoll) and only the shape
 // predictor runs, which allocates nothing. A detector's box is only roughly placed, so an
 // acquired face's landmarks are the median of seven predictions from boxes around it
-// (ShapePredictor::predict_median, docs/method.md 1).
+// (ShapePredictor::predict_median, docs/method.md 1). A still photograph in which the detector
+// finds no face is searched again at twice its size, then by OpenCV's face cascade
+// (TrackerSettings::still_cascade); a camera's frames never are.
 //
 // Every tracked frame is validated as the face that was acquired; the predictor returns 68
 // points wherever its box is, so after a cut, a face leaving the frame or a hand over the
@@ -34,6 +36,7 @@
 
 #include <memory>
 #include <numbers>
+#include <optional>
 
 namespace lipdrive {
 
@@ -66,6 +69,11 @@ struct TrackerSettings {
   /// The most pixels a still without a face at its own size is enlarged to for a second search
   /// (FaceTracker::reset); an enlargement under 1.2 is not worth one.
   double max_enlarged_still_pixels = 16e6;
+  /// A still in which dlib's detector finds no face, at its own size or enlarged, is searched
+  /// by this one (a copy of it: CascadeFaceDetector) for faces from half dlib's window wide;
+  /// none: not searched further. A camera's frames never are (docs/method.md 1, "A face the
+  /// HOG detector misses").
+  std::shared_ptr<const CascadeFaceDetector> still_cascade;
 };
 
 enum class TrackStatus {
@@ -125,7 +133,8 @@ class FaceTracker {
   /// The enlarged image is at most TrackerSettings::max_enlarged_still_pixels (by default a
   /// photograph over 4 megapixels is enlarged less, one over 11 not at all): enlarging a
   /// 12-megapixel photograph twice took 4.9 s and 510 MB to find no face, and a face that
-  /// small in it is too few pixels for its mouth to be measured.
+  /// small in it is too few pixels for its mouth to be measured. Where neither search finds a
+  /// face, TrackerSettings::still_cascade looks for one.
   void reset(Next next) {
     tracking_ = false;
     still_ = next == Next::kStill;
@@ -148,7 +157,11 @@ class FaceTracker {
 
  private:
   bool acquire(const cv::Mat& gray, Landmarks2D& landmarks);
-  bool acquire_among(const std::vector<FaceBox>& faces, double scale, const cv::Mat& gray, Landmarks2D& landmarks);
+  /// Which detector gave a box: dlib's, whose boxes the predictor was trained on, or the still
+  /// cascade, whose boxes are only roughly where dlib's would be.
+  enum class BoxSource { kDlib, kCascade };
+  bool acquire_among(const std::vector<FaceBox>& faces, double scale, BoxSource source, const cv::Mat& gray,
+                     Landmarks2D& landmarks);
   /// The last prediction's feature pixels have contrast and its landmarks a face's layout.
   bool looks_like_a_face(const cv::Mat& gray, const Landmarks2D& landmarks) const;
   /// Whether the landmarks are the face: on acquisition (already checked) its look becomes
@@ -158,6 +171,7 @@ class FaceTracker {
   TrackerSettings settings_;
   ShapePredictor predictor_;
   FaceDetector detector_;  // a copy of the predictor's
+  std::optional<CascadeFaceDetector> still_cascade_;  // a copy of the settings'
   FaceAppearance face_;
   double appearance_ = 0;
   double face_luma_ = 0;    // this frame's upper-face luma

@@ -51,10 +51,10 @@ set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_INSTALL_CMAKE_PROJECTS "${CMAKE_BINARY_DIR};${PROJECT_NAME};Unspecified;/")
 # Not linked, but used: dlib's landmark predictor (postinst converts it to the default [tracker]
 # predictor), the maintainer scripts' systemd-sysusers and deb-systemd-helper. olad only for DMX
-# output.
+# output; opencv-data's face cascade only for photographs `lipdrive process` reads.
 set(CPACK_DEBIAN_PACKAGE_DEPENDS
     "libdlib-data, systemd | systemd-standalone-sysusers | systemd-sysusers, init-system-helpers (>= 1.65~)")
-set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "ola")
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "ola, opencv-data")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
     ${PROJECT_SOURCE_DIR}/packaging/postinst ${PROJECT_SOURCE_DIR}/packaging/prerm
     ${PROJECT_SOURCE_DIR}/packaging/postrm ${PROJECT_SOURCE_DIR}/packaging/conffiles)

@@ -19,7 +19,7 @@ libraries=(
 )
 # What the build, the daemon and the tests run or read besides.
 tools=(
-  build-essential cmake pkg-config git ccache libdlib-data
+  build-essential cmake pkg-config git ccache libdlib-data opencv-data
   socat ffmpeg systemd clang-format ola liblo-tools
   lintian chromium chromium-driver
 )

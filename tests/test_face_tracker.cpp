@@ -9,6 +9,7 @@
 #include "core/shape_predictor.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "firmware_app/config/predictor_file.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "fixture_paths.hpp"
 #include "shared_predictor.hpp"
@@ -549,6 +550,106 @@ TEST(FaceTracker, AStillLooksForASmallFaceAtTwiceItsSize) {
   FaceTracker unenlarged(test::shared_predictor(), {.max_enlarged_still_pixels = 1.2 * pixels});
   unenlarged.reset(FaceTracker::Next::kStill);
   EXPECT_EQ(unenlarged.track(small, small_landmarks), TrackStatus::kNoFace) << "enlarged under 1.2 times: not searched";
+}
+
+// The face cascade Debian's opencv-data installs, loaded as `lipdrive process` loads it for
+// stills; nullptr when it is not installed (scripts/install-deps.sh installs it).
+std::shared_ptr<const CascadeFaceDetector> face_cascade() {
+  static const std::shared_ptr<const CascadeFaceDetector> cascade =
+      std::filesystem::exists(kOpenCvFaceCascadePath) ? load_still_cascade() : nullptr;
+  return cascade;
+}
+
+// The generated face with its right half (on the screen) at 15 % of its brightness: a face lit
+// from one side, which dlib's HOG filters miss at its own size and at twice it.
+cv::Mat face_half_in_shadow(const cv::Mat& face) {
+  cv::Mat shadowed = face.clone();
+  shadowed.colRange(face.cols / 2, face.cols) *= 0.15;
+  return shadowed;
+}
+
+// A still in which dlib's detector finds no face is searched by OpenCV's face cascade, and the
+// landmarks it gives are where they are in the evenly lit picture. A camera's frames are not:
+// a camera that loses the face waits for dlib's detector.
+TEST(FaceTracker, AStillHalfInShadowIsFoundByTheFaceCascade) {
+  const cv::Mat face = generated_face();
+  if (face.empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  if (!face_cascade()) GTEST_SKIP() << kOpenCvFaceCascadePath << " is not installed (opencv-data)";
+  const cv::Mat shadowed = face_half_in_shadow(face);
+  cv::Mat enlarged;
+  cv::resize(shadowed, enlarged, {}, 2, 2, cv::INTER_LINEAR);
+  ASSERT_TRUE(detect(shadowed).empty() && detect(enlarged).empty()) << "dlib's detector finds this face: no test";
+
+  Landmarks2D lit, landmarks;
+  FaceTracker hog_alone(test::shared_predictor());
+  ASSERT_EQ(hog_alone.track(face, lit), TrackStatus::kAcquired);
+  hog_alone.reset(FaceTracker::Next::kStill);
+  EXPECT_EQ(hog_alone.track(shadowed, landmarks), TrackStatus::kNoFace);
+
+  FaceTracker tracker(test::shared_predictor(), {.still_cascade = face_cascade()});
+  tracker.reset(FaceTracker::Next::kVideo);
+  EXPECT_EQ(tracker.track(shadowed, landmarks), TrackStatus::kNoFace) << "a camera's frame";
+  tracker.reset(FaceTracker::Next::kStill);
+  ASSERT_EQ(tracker.track(shadowed, landmarks), TrackStatus::kAcquired);
+  const double iod = interocular_distance(lit);
+  EXPECT_LT((landmarks - lit).colwise().norm().mean(), 0.05 * iod);
+  EXPECT_LT((landmarks - lit).rightCols(kNumLandmarks - ibug::kMouthCornerRight).colwise().norm().maxCoeff(),
+            0.05 * iod)
+      << "the mouth";
+
+  // A photograph over 2 megapixels is searched reduced to them: the same face three times the
+  // size (2.8 megapixels; not enlarged for dlib's second look, which would take seconds).
+  cv::Mat large;
+  cv::resize(shadowed, large, {}, 3, 3, cv::INTER_LINEAR);
+  FaceTracker large_still(test::shared_predictor(), {.max_enlarged_still_pixels = 0, .still_cascade = face_cascade()});
+  large_still.reset(FaceTracker::Next::kStill);
+  ASSERT_EQ(large_still.track(large, landmarks), TrackStatus::kAcquired);
+  EXPECT_LT((landmarks - 3 * lit).colwise().norm().mean(), 3 * 0.05 * iod);
+}
+
+// The cascade's boxes are where dlib's detector puts them (the shape predictor was trained on
+// those): on the evenly lit face, which both find, the centres within a tenth of the box's
+// width and the widths within a fifth. Its false detections need many neighbours to pass: a
+// picture of noise holds no face.
+TEST(CascadeFaceDetector, ItsBoxesAreWhereDlibsDetectorPutsThem) {
+  const cv::Mat face = generated_face();
+  if (face.empty()) LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  if (!face_cascade()) GTEST_SKIP() << kOpenCvFaceCascadePath << " is not installed (opencv-data)";
+  CascadeFaceDetector cascade(*face_cascade());
+  const std::vector<FaceBox> boxes = cascade.detect(face, 40);
+  const std::vector<dlib::rectangle> hog = detect(face);
+  ASSERT_EQ(boxes.size(), 1u);
+  ASSERT_EQ(hog.size(), 1u);
+  const double width = static_cast<double>(hog[0].width());
+  EXPECT_NEAR(boxes[0].width(), width, 0.2 * width);
+  EXPECT_NEAR(0.5 * (boxes[0].left + boxes[0].right), dlib::center(hog[0]).x(), 0.1 * width);
+  EXPECT_NEAR(0.5 * (boxes[0].top + boxes[0].bottom), dlib::center(hog[0]).y(), 0.1 * width);
+  EXPECT_TRUE(cascade.detect(face, 1.1 * face.rows).empty()) << "no face wider than asked for";
+
+  cv::Mat noise(face.size(), CV_8UC1);
+  cv::RNG(7).fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(noise, noise, {0, 0}, 2);
+  EXPECT_TRUE(cascade.detect(noise, 40).empty());
+}
+
+// The face cascade's file: missing, stills are searched by dlib's detector alone; one that
+// holds no cascade is a data error naming it.
+TEST(CascadeFaceDetector, AFileThatHoldsNoCascadeIsADataError) {
+  const auto dir = std::filesystem::temp_directory_path() / "lipdrive_test_cascade";
+  std::filesystem::create_directories(dir);
+  EXPECT_EQ(load_still_cascade(dir / "missing.xml"), nullptr);
+  const auto text = dir / "notes.xml";
+  std::ofstream(text) << "<?xml version=\"1.0\"?>\n<opencv_storage><notes>not a cascade</notes></opencv_storage>\n";
+  try {
+    load_still_cascade(text);
+    ADD_FAILURE() << text << " was accepted";
+  } catch (const CommandError& e) {
+    EXPECT_EQ(e.exit_code(), kExitDataError);
+    EXPECT_NE(std::string(e.what()).find(text.string()), std::string::npos) << e.what();
+  }
+  std::ofstream(text) << "not even XML";
+  EXPECT_THROW(load_still_cascade(text), CommandError);
+  EXPECT_THROW(CascadeFaceDetector(std::make_shared<const std::string>("")), std::runtime_error);
 }
 
 // A head-mounted camera's face fills the picture: with [tracker] min_face_px the detector

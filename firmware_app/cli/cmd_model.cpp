@@ -11,6 +11,7 @@
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/paths.hpp"
+#include "firmware_app/config/predictor_file.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "sim/mesh_renderer.hpp"
 
@@ -197,11 +198,12 @@ struct FittedFrame {
 };
 
 FittedFrame fit_frame(const MorphableModel& model, const RenderArgs& args) {
+  SimulatedCamera video = open_recording(args.video);
   Config config;
   config.model.file = args.model;
+  if (video.independent_frames()) config.tracker.settings.still_cascade = load_still_cascade();
   const std::unique_ptr<FrameProcessor> processor = make_processor(config, load_performer(config));
   fit_take_identity(args.video, Rotation::k0, *processor);
-  SimulatedCamera video = open_recording(args.video);
   const std::string name = args.video.string();
   Frame frame;
   const FrameMeasurement* result = nullptr;

@@ -21,6 +21,7 @@
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/paths.hpp"
+#include "firmware_app/config/predictor_file.hpp"
 #include "firmware_app/daemon/frame_processor.hpp"
 #include "firmware_app/daemon/rotated_camera.hpp"
 #include "firmware_app/tables/measures_csv.hpp"
@@ -286,7 +287,8 @@ Config config_for(const ProcessOptions& options) {
 void run_process(const ProcessOptions& options) {
   const auto timecode = timecode_start(options);
   SimulatedCamera camera = open_recording(options.input);
-  const Config config = config_for(options);
+  Config config = config_for(options);
+  if (camera.independent_frames()) config.tracker.settings.still_cascade = load_still_cascade();
   // The performer's profile (the defaults without one): the fit's identity, and the signals the
   // ARKit weights of a model without expression shapes come from.
   const PerformerProfile profile = load_performer(config);

@@ -5,8 +5,10 @@
 #include "firmware_app/config/model_files.hpp"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <fstream>
+#include <string>
 #include <system_error>
 
 namespace lipdrive {
@@ -31,6 +33,28 @@ std::shared_ptr<const ShapePredictorData> load_predictor_file(const std::filesys
     if (!in) throw CommandError(fmt::format("{}: cannot open for reading", path.string()), kExitNoInput);
     return std::make_shared<const ShapePredictorData>(ShapePredictorData::read_dlib(in, &FaceDetector::builtin));
   } catch (const ShapePredictorFormatError& e) {
+    throw CommandError(fmt::format("{}: {}", path.string(), e.what()), kExitDataError);
+  }
+}
+
+std::shared_ptr<const CascadeFaceDetector> load_still_cascade(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    spdlog::warn("{}: no such face cascade (Debian's opencv-data); stills are searched by dlib's detector alone",
+                 path.string());
+    return nullptr;
+  }
+  std::shared_ptr<const std::string> text;
+  try {
+    const MappedFile file(path);
+    const auto bytes = file.bytes();
+    text = std::make_shared<const std::string>(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  } catch (const std::system_error& e) {
+    throw CommandError(e.what(), kExitNoInput);
+  }
+  try {
+    return std::make_shared<const CascadeFaceDetector>(std::move(text));
+  } catch (const std::runtime_error& e) {
     throw CommandError(fmt::format("{}: {}", path.string(), e.what()), kExitDataError);
   }
 }

@@ -18,6 +18,17 @@ namespace lipdrive {
 /// not a 68-point predictor.
 std::shared_ptr<const ShapePredictorData> load_predictor_file(const std::filesystem::path& path);
 
+/// OpenCV's frontal face cascade as Debian's opencv-data installs it: stills in which dlib's
+/// detector finds no face are searched with it (TrackerSettings::still_cascade).
+inline constexpr const char* kOpenCvFaceCascadePath =
+    "/usr/share/opencv4/haarcascades/haarcascade_frontalface_alt2.xml";
+
+/// The face cascade for stills in `path`. Missing: a warning that stills are searched by dlib's
+/// detector alone, and nullptr. Throws CommandError naming the path when it cannot be read
+/// (kExitNoInput) or holds no cascade (kExitDataError).
+std::shared_ptr<const CascadeFaceDetector> load_still_cascade(
+    const std::filesystem::path& path = kOpenCvFaceCascadePath);
+
 /// Writes `predictor` as an .lpp file (replace_file: never half-written).
 void save_compact_predictor_file(const std::filesystem::path& path, const ShapePredictorData& predictor);
 
