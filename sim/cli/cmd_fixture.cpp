@@ -23,6 +23,8 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <system_error>
+#include <utility>
 
 namespace lipdrive {
 namespace {
@@ -110,13 +112,17 @@ struct FixtureFrame {
 };
 
 /// <out>/<name>.avi and <out>/<name>_truth.csv (frame,time_s,<truth_columns>): one video frame
-/// and one truth row per call of `frame(f)`, f = 0 .. frames - 1.
+/// and one truth row per call of `frame(f)`, f = 0 .. frames - 1. Both are written beside their
+/// place and renamed into it when complete, so a reader of the old files (a soak replaying the
+/// clip while the build regenerates it) keeps reading them whole.
 void write_fixture(const fs::path& out, std::string_view name, double fps, cv::Size frame_size,
                    std::string_view truth_columns, std::size_t frames,
                    const std::function<FixtureFrame(std::size_t)>& frame) {
   create_output_directory(out);
-  const fs::path video_path = out / fmt::format("{}.avi", name);
-  const fs::path truth_path = out / fmt::format("{}_truth.csv", name);
+  const fs::path video_final = out / fmt::format("{}.avi", name);
+  const fs::path truth_final = out / fmt::format("{}_truth.csv", name);
+  const fs::path video_path = out / fmt::format("{}.writing.avi", name);
+  const fs::path truth_path = out / fmt::format("{}_truth.writing.csv", name);
   cv::VideoWriter video = open_video(video_path, fps, frame_size);
   try {
     auto truth = fmt::output_file(truth_path.string());
@@ -130,7 +136,12 @@ void write_fixture(const fs::path& out, std::string_view name, double fps, cv::S
     throw CommandError(fmt::format("{}: cannot write: {}", truth_path.string(), e.code().message()));
   }
   video.release();
-  spdlog::info("wrote {} frames to {} and {}", frames, video_path.string(), truth_path.string());
+  std::error_code ec;
+  for (const auto& [from, to] : {std::pair(video_path, video_final), std::pair(truth_path, truth_final)}) {
+    fs::rename(from, to, ec);
+    if (ec) throw CommandError(fmt::format("{}: cannot rename to {}: {}", from.string(), to.string(), ec.message()));
+  }
+  spdlog::info("wrote {} frames to {} and {}", frames, video_final.string(), truth_final.string());
 }
 
 void write_talking_face(const TalkingFaceArgs& args) {
