@@ -23,7 +23,7 @@ constexpr double kTurnSettled = std::numbers::pi / 180;
 constexpr double kBoxSettled = 0.02;
 /// The most pixels the still cascade searches: a larger photograph is reduced to them (a face
 /// then needs 40 pixels in the reduced picture). A faceless 12-megapixel picture took 1.1 s and
-/// 170 MB more at its own size.
+/// 170 MB more at its own size, 0.14 s and 34 MB reduced.
 constexpr double kMaxCascadePixels = 2e6;
 
 /// How far landmark i lies inside the picture's edges (negative beyond them).
