@@ -8,6 +8,10 @@ namespace lipdrive {
 /// The landmark predictor Debian's libdlib-data installs (research-only licence; see README);
 /// the build converts it into default_predictor_path().
 inline constexpr const char* kDebianPredictorPath = "/usr/share/dlib/shape_predictor_68_face_landmarks.dat";
+/// OpenCV's frontal face cascade as Debian's opencv-data installs it: stills in which dlib's
+/// detector finds no face are searched with it (TrackerSettings::still_cascade).
+inline constexpr const char* kOpenCvFaceCascadePath =
+    "/usr/share/opencv4/haarcascades/haarcascade_frontalface_alt2.xml";
 
 /// The directory holding the default models: <exe dir>/models in a build tree,
 /// <prefix>/share/lipdrive/models when installed.

@@ -2,7 +2,8 @@
 // core/shape_predictor.hpp has the layout), or any dlib shape predictor (.dat) that predicts
 // the 68 iBUG landmarks, e.g. Debian's (research-only licence, see core/face_tracker.hpp) or
 // a user-trained one. `lipdrive predictor convert` turns a .dat into an .lpp; the build does
-// it for Debian's.
+// it for Debian's. And the face cascade the offline commands search stills with when dlib's
+// detector finds no face in them.
 #pragma once
 
 #include "core/shape_predictor.hpp"
@@ -17,11 +18,6 @@ namespace lipdrive {
 /// naming the path: kExitNoInput when it is missing or unreadable, kExitDataError when it is
 /// not a 68-point predictor.
 std::shared_ptr<const ShapePredictorData> load_predictor_file(const std::filesystem::path& path);
-
-/// OpenCV's frontal face cascade as Debian's opencv-data installs it: stills in which dlib's
-/// detector finds no face are searched with it (TrackerSettings::still_cascade).
-inline constexpr const char* kOpenCvFaceCascadePath =
-    "/usr/share/opencv4/haarcascades/haarcascade_frontalface_alt2.xml";
 
 /// The face cascade for stills in `path`. Missing: a warning that stills are searched by dlib's
 /// detector alone, and nullptr. Throws CommandError naming the path when it cannot be read
