@@ -8,6 +8,8 @@
 // works on a copy of its own: detection keeps scratch inside the detector.
 #pragma once
 
+#include "core/landmarks.hpp"
+
 #include <opencv2/core/mat.hpp>
 
 #include <cstdint>
@@ -66,14 +68,16 @@ class FaceDetector {
 /// opencv-data: haarcascade_frontalface_alt2.xml), run on the histogram-equalised image. It
 /// finds a face half in shadow, which the HOG filters miss (docs/method.md 1, "A face the HOG
 /// detector misses"). Its boxes are moved to the HOG detector's convention, which the landmark
-/// predictor was trained on.
+/// predictor was trained on. It also takes cloud-like textures for faces, so a face it finds
+/// counts only where its eye cascade (haarcascade_eye.xml) finds an eye where the landmarks put
+/// one (sees_an_eye).
 class CascadeFaceDetector {
  public:
-  /// The cascade in `xml`, the text of one of OpenCV's cascade files. Throws
-  /// std::runtime_error when it holds none.
-  explicit CascadeFaceDetector(std::shared_ptr<const std::string> xml);
-  /// A copy works on a cascade of its own (detection keeps scratch inside it): it reads the
-  /// text again.
+  /// The face and the eye cascade in `face_xml` and `eye_xml`, the texts of OpenCV's cascade
+  /// files. Throws std::runtime_error naming which holds none.
+  CascadeFaceDetector(std::shared_ptr<const std::string> face_xml, std::shared_ptr<const std::string> eye_xml);
+  /// A copy works on cascades of its own (detection keeps scratch inside them): it reads the
+  /// texts again.
   CascadeFaceDetector(const CascadeFaceDetector& other);
   CascadeFaceDetector& operator=(const CascadeFaceDetector&) = delete;
   ~CascadeFaceDetector();
@@ -83,10 +87,15 @@ class CascadeFaceDetector {
   /// still in which dlib's detector found nothing).
   std::vector<FaceBox> detect(const cv::Mat& gray, double min_width);
 
+  /// Whether the eye cascade finds an eye within a quarter of the inter-ocular distance of
+  /// where `landmarks` (in `gray`) put either eye, searching each eye's surroundings after
+  /// equalising their histogram (so the eye in a face's shadowed half counts). Allocates.
+  bool sees_an_eye(const cv::Mat& gray, const Landmarks2D& landmarks);
+
  private:
-  struct Cascade;  // cv::CascadeClassifier, kept out of this header
-  std::shared_ptr<const std::string> xml_;
-  std::unique_ptr<Cascade> cascade_;
+  struct Cascades;  // cv::CascadeClassifier for the face and the eye, kept out of this header
+  std::shared_ptr<const std::string> face_xml_, eye_xml_;
+  std::unique_ptr<Cascades> cascades_;
 };
 
 }  // namespace lipdrive

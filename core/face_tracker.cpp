@@ -132,6 +132,7 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
       predictor_.predict_median(gray, next, landmarks);
     }
     if (!looks_like_a_face(gray, landmarks)) continue;
+    if (source == BoxSource::kCascade && !still_cascade_->sees_an_eye(gray, landmarks)) continue;
     const std::pair rank(!jaw_off_picture(landmarks, gray.cols, gray.rows), interocular_distance(landmarks));
     if (!best || rank > best->rank) best = Candidate{box, landmarks, rank};
   }

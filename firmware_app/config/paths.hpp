@@ -12,6 +12,8 @@ inline constexpr const char* kDebianPredictorPath = "/usr/share/dlib/shape_predi
 /// detector finds no face are searched with it (TrackerSettings::still_cascade).
 inline constexpr const char* kOpenCvFaceCascadePath =
     "/usr/share/opencv4/haarcascades/haarcascade_frontalface_alt2.xml";
+/// The eye cascade beside it, which confirms the faces that one finds.
+inline constexpr const char* kOpenCvEyeCascadePath = "/usr/share/opencv4/haarcascades/haarcascade_eye.xml";
 
 /// The directory holding the default models: <exe dir>/models in a build tree,
 /// <prefix>/share/lipdrive/models when installed.

@@ -37,25 +37,37 @@ std::shared_ptr<const ShapePredictorData> load_predictor_file(const std::filesys
   }
 }
 
-std::shared_ptr<const CascadeFaceDetector> load_still_cascade(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) {
-    spdlog::warn("{}: no such face cascade (Debian's opencv-data); stills are searched by dlib's detector alone",
-                 path.string());
-    return nullptr;
-  }
-  std::shared_ptr<const std::string> text;
+namespace {
+
+/// The text of a cascade file. Throws CommandError naming it when it cannot be read.
+std::shared_ptr<const std::string> read_cascade_file(const std::filesystem::path& path) {
   try {
     const MappedFile file(path);
     const auto bytes = file.bytes();
-    text = std::make_shared<const std::string>(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+    return std::make_shared<const std::string>(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   } catch (const std::system_error& e) {
     throw CommandError(e.what(), kExitNoInput);
   }
+}
+
+}  // namespace
+
+std::shared_ptr<const CascadeFaceDetector> load_still_cascade(const std::filesystem::path& face,
+                                                              const std::filesystem::path& eye) {
+  for (const std::filesystem::path& path : {face, eye}) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) {
+      spdlog::warn("{}: no such cascade (Debian's opencv-data); stills are searched by dlib's detector alone",
+                   path.string());
+      return nullptr;
+    }
+  }
+  const std::shared_ptr<const std::string> face_xml = read_cascade_file(face), eye_xml = read_cascade_file(eye);
   try {
-    return std::make_shared<const CascadeFaceDetector>(std::move(text));
+    return std::make_shared<const CascadeFaceDetector>(face_xml, eye_xml);
   } catch (const std::runtime_error& e) {
-    throw CommandError(fmt::format("{}: {}", path.string(), e.what()), kExitDataError);
+    // The message says which of the two holds no cascade.
+    throw CommandError(fmt::format("{} / {}: {}", face.string(), eye.string(), e.what()), kExitDataError);
   }
 }
 

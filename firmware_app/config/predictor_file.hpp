@@ -19,11 +19,12 @@ namespace lipdrive {
 /// not a 68-point predictor.
 std::shared_ptr<const ShapePredictorData> load_predictor_file(const std::filesystem::path& path);
 
-/// The face cascade for stills in `path`. Missing: a warning that stills are searched by dlib's
-/// detector alone, and nullptr. Throws CommandError naming the path when it cannot be read
-/// (kExitNoInput) or holds no cascade (kExitDataError).
+/// The face and eye cascades for stills in `face` and `eye`. Either missing: a warning that
+/// stills are searched by dlib's detector alone, and nullptr. Throws CommandError naming the
+/// path when one cannot be read (kExitNoInput) or holds no cascade (kExitDataError).
 std::shared_ptr<const CascadeFaceDetector> load_still_cascade(
-    const std::filesystem::path& path = kOpenCvFaceCascadePath);
+    const std::filesystem::path& face = kOpenCvFaceCascadePath,
+    const std::filesystem::path& eye = kOpenCvEyeCascadePath);
 
 /// Writes `predictor` as an .lpp file (replace_file: never half-written).
 void save_compact_predictor_file(const std::filesystem::path& path, const ShapePredictorData& predictor);
