@@ -64,6 +64,12 @@ namespace {
 constexpr unsigned long kBuiltinFilters = 5, kRolledFilter = 3, kRolledOtherWayFilter = 4;
 constexpr double kRolledFilterRoll = -30 * std::numbers::pi / 180;
 
+/// `boxes` largest first (the same size: in the detector's order).
+std::vector<FaceBox> largest_first(std::vector<FaceBox> boxes) {
+  std::stable_sort(boxes.begin(), boxes.end(), [](const FaceBox& a, const FaceBox& b) { return a.area() > b.area(); });
+  return boxes;
+}
+
 }  // namespace
 
 std::vector<FaceBox> FaceDetector::detect(const cv::Mat& gray) {
@@ -79,8 +85,7 @@ std::vector<FaceBox> FaceDetector::detect(const cv::Mat& gray) {
                                                                   : 0;
     boxes.push_back({r.left(), r.top(), r.right(), r.bottom(), roll});
   }
-  std::stable_sort(boxes.begin(), boxes.end(), [](const FaceBox& a, const FaceBox& b) { return a.area() > b.area(); });
-  return boxes;
+  return largest_first(std::move(boxes));
 }
 
 struct CascadeFaceDetector::Cascades {
@@ -135,6 +140,8 @@ constexpr int kMinNeighbours = 6;
 /// The eye cascade's boxes searched for, over the inter-ocular distance, and how far from
 /// where the landmarks put the eye one may lie.
 constexpr double kEyeSmallest = 0.2, kEyeLargest = 0.8, kEyeWithin = 0.25;
+/// The eye cascade's window (haarcascade_eye.xml): the smallest eye it finds, in pixels.
+constexpr int kEyeWindowPx = 20;
 
 }  // namespace
 
@@ -150,12 +157,11 @@ std::vector<FaceBox> CascadeFaceDetector::detect(const cv::Mat& gray, double min
     boxes.push_back(
         {std::lround(x - half), std::lround(y - half), std::lround(x + half) - 1, std::lround(y + half) - 1});
   }
-  std::stable_sort(boxes.begin(), boxes.end(), [](const FaceBox& a, const FaceBox& b) { return a.area() > b.area(); });
-  return boxes;
+  return largest_first(std::move(boxes));
 }
 
 bool CascadeFaceDetector::sees_an_eye(const cv::Mat& gray, const Landmarks2D& landmarks) {
-  const double iod = (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)).norm();
+  const double iod = interocular_distance(landmarks);
   const cv::Rect picture(0, 0, gray.cols, gray.rows);
   for (const auto [outer, inner] :
        {std::pair(ibug::kRightEyeOuter, ibug::kRightEyeInner), std::pair(ibug::kLeftEyeInner, ibug::kLeftEyeOuter)}) {
@@ -166,10 +172,10 @@ bool CascadeFaceDetector::sees_an_eye(const cv::Mat& gray, const Landmarks2D& la
     const cv::Rect around = cv::Rect(static_cast<int>(std::lround(eye.x())) - side / 2,
                                      static_cast<int>(std::lround(eye.y())) - side / 2, side, side) &
                             picture;
-    if (around.width < 20 || around.height < 20) continue;
+    if (around.width < kEyeWindowPx || around.height < kEyeWindowPx) continue;
     cv::equalizeHist(gray(around), cascades_->equalised);
     std::vector<cv::Rect> found;
-    const int smallest = std::max(20, static_cast<int>(kEyeSmallest * iod));
+    const int smallest = std::max(kEyeWindowPx, static_cast<int>(kEyeSmallest * iod));
     const int largest = std::max(smallest, static_cast<int>(kEyeLargest * iod));
     cascades_->eye.detectMultiScale(cascades_->equalised, found, 1.1, 3, 0, {smallest, smallest}, {largest, largest});
     for (const cv::Rect& r : found) {

@@ -10,10 +10,6 @@
 
 namespace lipdrive {
 
-double interocular_distance(const Landmarks2D& landmarks) {
-  return (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)).norm();
-}
-
 namespace {
 
 /// How many times acquisition moves the box after the landmarks, at most; the change of its

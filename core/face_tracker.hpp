@@ -99,9 +99,6 @@ inline constexpr double kMouthInCutPicture = 0.15;
 /// turned by the excess (docs/method.md 1, "A rolled head").
 inline constexpr double kUprightRoll = 10 * std::numbers::pi / 180;
 
-/// Outer eye corner to outer eye corner (36-45), the usual face size for normalising errors.
-double interocular_distance(const Landmarks2D& landmarks);
-
 /// Whether a point of the jaw line (0-16) lies beyond the picture's edge.
 bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height);
 

@@ -31,6 +31,11 @@ inline constexpr int kInnerLipTop = 62, kInnerLipBottom = 66;
 inline constexpr int kChin = 8;  // gnathion
 }  // namespace ibug
 
+/// Outer eye corner to outer eye corner (36-45), the usual face size for normalising errors.
+inline double interocular_distance(const Landmarks2D& landmarks) {
+  return (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)).norm();
+}
+
 enum class LandmarkSet { F1, F2, F3, F4, F5 };
 inline constexpr LandmarkSet kDefaultLandmarkSet = LandmarkSet::F4;
 /// The sets' names, in LandmarkSet order: what configuration files and the CLI accept.
