@@ -1,6 +1,7 @@
 #include "drivers/gpio_lines.hpp"
 
 #include <gpiod.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -15,6 +16,20 @@ constexpr const char* kConsumer = "lipdrive";
 
 /// libgpiod v1 reports failures as std::system_error carrying errno.
 int error_code_of(const std::system_error& error) { return error.code().value(); }
+
+/// A kernel before Linux 5.5 rejects the bias flags as unknown (EINVAL); a driver may refuse
+/// the setting (EOPNOTSUPP, or the kernel's internal ENOTSUPP, 524).
+bool cannot_set_bias(int code) { return code == EINVAL || code == EOPNOTSUPP || code == 524; }
+
+const char* bias_name(GpioBias bias) {
+  switch (bias) {
+    case GpioBias::kPullUp: return "pull-up";
+    case GpioBias::kPullDown: return "pull-down";
+    case GpioBias::kDisable: return "bias off";
+    case GpioBias::kAsIs: break;
+  }
+  return "bias as the board set it";
+}
 
 [[noreturn]] void fail(const std::string& chip, const std::string& reason) {
   throw GpioError("gpio chip " + chip + ": " + reason);
@@ -111,18 +126,35 @@ class GpiodChipLines final : public GpioLines {
 
   gpiod::line request(const gpiod::chip& chip, const GpioLineSpec& spec) const {
     gpiod::line line = find_line(chip, chip_name_, spec.line);
+    GpioLineSpec as_is = spec;
+    as_is.bias = GpioBias::kAsIs;
+    const std::bitset<32> flags = gpiod_request_flags(spec), without_bias = gpiod_request_flags(as_is);
+    int code = try_request(line, spec, flags);
+    if (code != 0 && flags != without_bias && cannot_set_bias(code)) {
+      const std::string what = "line " + spec.line + ": the kernel cannot set its " + bias_name(spec.bias) + " (" +
+                               std::system_category().message(code) + ")";
+      if (spec.bias_required) fail(what + "; input_bias = \"as-is\" leaves it to the board's resistor");
+      spdlog::warn("gpio chip {}: {}: it rests on the board's resistor", chip_name_, what);
+      code = try_request(line, spec, without_bias);
+    }
+    if (code == EBUSY) fail("line " + spec.line + ": busy (used by \"" + line.consumer() + "\")");
+    if (code != 0) fail("line " + spec.line + ": cannot request: " + std::system_category().message(code));
+    return line;
+  }
+
+  /// 0, or the errno of a failed request.
+  static int try_request(gpiod::line& line, const GpioLineSpec& spec, std::bitset<32> flags) {
     gpiod::line_request config;
     config.consumer = kConsumer;
     config.request_type = spec.direction == GpioDirection::kOutput ? gpiod::line_request::DIRECTION_OUTPUT
                                                                    : gpiod::line_request::DIRECTION_INPUT;
-    if (spec.active_low) config.flags = gpiod::line_request::FLAG_ACTIVE_LOW;
+    config.flags = flags;
     try {
       line.request(config, 0);
     } catch (const std::system_error& error) {
-      if (error_code_of(error) == EBUSY) fail("line " + spec.line + ": busy (used by \"" + line.consumer() + "\")");
-      fail("line " + spec.line + ": cannot request: " + error.code().message());
+      return error_code_of(error);
     }
-    return line;
+    return 0;
   }
 
   const gpiod::line& requested(const std::string& line, GpioDirection direction) const {
@@ -142,6 +174,20 @@ class GpiodChipLines final : public GpioLines {
 };
 
 }  // namespace
+
+std::bitset<32> gpiod_request_flags(const GpioLineSpec& spec) {
+  std::bitset<32> flags;
+  if (spec.active_low) flags |= gpiod::line_request::FLAG_ACTIVE_LOW;
+  if (spec.direction == GpioDirection::kInput) {
+    switch (spec.bias) {
+      case GpioBias::kPullUp: flags |= gpiod::line_request::FLAG_BIAS_PULL_UP; break;
+      case GpioBias::kPullDown: flags |= gpiod::line_request::FLAG_BIAS_PULL_DOWN; break;
+      case GpioBias::kDisable: flags |= gpiod::line_request::FLAG_BIAS_DISABLE; break;
+      case GpioBias::kAsIs: break;
+    }
+  }
+  return flags;
+}
 
 std::unique_ptr<GpioLines> open_gpiod_chip(const std::string& chip, std::vector<GpioLineSpec> lines) {
   return std::make_unique<GpiodChipLines>(chip, std::move(lines));

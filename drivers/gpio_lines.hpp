@@ -9,6 +9,7 @@
 // setting and reading a line are single ioctls on the chip's line handles.
 #pragma once
 
+#include <bitset>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -24,12 +25,26 @@ class GpioError : public std::runtime_error {
 
 enum class GpioDirection { kOutput, kInput };
 
+/// The chip's own resistor on an input, which holds the line where nothing drives it (an open
+/// contact, a cut cable). kAsIs leaves it as the board and the device tree set it.
+enum class GpioBias { kAsIs, kPullUp, kPullDown, kDisable };
+
 struct GpioLineSpec {
   std::string line;  // offset ("17") or name ("GPIO17")
   GpioDirection direction = GpioDirection::kOutput;
   /// The line is active (reads or drives true) at low voltage: buttons that pull to ground.
   bool active_low = false;
+  /// Inputs: the bias asked of the chip (libgpiod's bias flags: Linux 5.5 or later, and a chip
+  /// that has the resistors). Where the kernel or the chip cannot set it, `bias_required`
+  /// makes the request fail (GpioError saying so); otherwise the line is requested without it
+  /// and a warning names the line.
+  GpioBias bias = GpioBias::kAsIs;
+  bool bias_required = false;
 };
+
+/// libgpiod v1's request flags (gpiod::line_request::FLAG_*) for `spec`: active-low, and the
+/// bias of an input.
+std::bitset<32> gpiod_request_flags(const GpioLineSpec& spec);
 
 /// The seam between the GPIO logic and the hardware; tests use a fake.
 class GpioLines {

@@ -327,6 +327,19 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   EXPECT_EQ(run_lipdrive("check-config " + (dir_ / "none.toml").string()).exit_code, 78);
 }
 
+TEST_F(ConfigTest, GpioInputBiasIsAutomaticUnlessNamed) {
+  write("", "[outputs.gpio]\nenable_switch = \"GPIO24\"\n");
+  EXPECT_FALSE(load_config(file_).outputs.gpio.input_bias.has_value()) << "auto by default";
+  for (const auto& [name, bias] : {std::pair{"pull-up", GpioBias::kPullUp}, std::pair{"pull-down", GpioBias::kPullDown},
+                                   std::pair{"disable", GpioBias::kDisable}, std::pair{"as-is", GpioBias::kAsIs}}) {
+    write("", fmt::format("[outputs.gpio]\ninput_bias = \"{}\"\n", name));
+    EXPECT_EQ(load_config(file_).outputs.gpio.input_bias, bias) << name;
+  }
+  write("", "[outputs.gpio]\ninput_bias = \"up\"\n");
+  EXPECT_THAT(error(), HasSubstr("key outputs.gpio.input_bias: must be one of auto, pull-up, pull-down, disable, "
+                                 "as-is, got \"up\""));
+}
+
 TEST_F(ConfigTest, CheckConfigLooksUpTheGpioChip) {
   // This machine has no GPIO chip: the daemon would stop at start with exit 78, and so does
   // the check. Without [outputs.gpio] enabled the chip is not looked for.

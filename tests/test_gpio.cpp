@@ -6,6 +6,7 @@
 
 #include "tests/captured_log.hpp"
 
+#include <gpiod.hpp>
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
 
@@ -349,6 +350,47 @@ TEST(GpioOutput, WithoutAnEnableSwitchTheDriveStaysEnabledEvenWhenTheChipIsLost)
   output.publish(frame_at(0));
   EXPECT_FALSE(output.healthy());
   EXPECT_TRUE(control.enable_switch_closed.load());
+}
+
+TEST(GpioOutput, InputsRestReleasedThroughTheChipsResistorUnlessConfiguredOtherwise) {
+  // An input nothing drives (an open contact, a cut cable) must read released: active-low
+  // inputs get the chip's pull-up, active-high ones its pull-down, where the kernel can set it.
+  GpioOptions options = all_lines_and_switch();
+  for (const bool active_low : {true, false}) {
+    options.buttons_active_low = active_low;
+    for (const GpioLineSpec& spec : gpio_line_specs(options)) {
+      SCOPED_TRACE(spec.line);
+      if (spec.direction == GpioDirection::kOutput) {
+        EXPECT_EQ(spec.bias, GpioBias::kAsIs);
+        continue;
+      }
+      EXPECT_EQ(spec.active_low, active_low);
+      EXPECT_EQ(spec.bias, active_low ? GpioBias::kPullUp : GpioBias::kPullDown);
+      EXPECT_FALSE(spec.bias_required) << "a kernel that cannot set it leaves it to the board's resistor";
+    }
+  }
+  // Named in the configuration: exactly that, and a kernel that cannot set it is an error.
+  options.input_bias = GpioBias::kDisable;
+  const std::vector<GpioLineSpec> specs = gpio_line_specs(options);
+  ASSERT_EQ(specs.size(), 5u);
+  for (const GpioLineSpec& spec : specs) {
+    if (spec.direction == GpioDirection::kOutput) continue;
+    EXPECT_EQ(spec.bias, GpioBias::kDisable) << spec.line;
+    EXPECT_TRUE(spec.bias_required) << spec.line;
+  }
+}
+
+TEST(GpiodChipLines, TheRequestAsksForTheBiasOfInputsBesideActiveLow) {
+  using Request = gpiod::line_request;
+  const auto flags = [](GpioDirection direction, bool active_low, GpioBias bias) {
+    return gpiod_request_flags({"17", direction, active_low, bias});
+  };
+  EXPECT_EQ(flags(GpioDirection::kInput, true, GpioBias::kPullUp),
+            Request::FLAG_ACTIVE_LOW | Request::FLAG_BIAS_PULL_UP);
+  EXPECT_EQ(flags(GpioDirection::kInput, false, GpioBias::kPullDown), Request::FLAG_BIAS_PULL_DOWN);
+  EXPECT_EQ(flags(GpioDirection::kInput, false, GpioBias::kDisable), Request::FLAG_BIAS_DISABLE);
+  EXPECT_EQ(flags(GpioDirection::kInput, true, GpioBias::kAsIs), Request::FLAG_ACTIVE_LOW);
+  EXPECT_EQ(flags(GpioDirection::kOutput, false, GpioBias::kPullUp), std::bitset<32>()) << "outputs drive their line";
 }
 
 TEST(GpiodChipLines, AMissingChipIsAnErrorNamingIt) {

@@ -622,6 +622,11 @@ void read_outputs(Section outputs, Config& config) {
   g.record_button = gpio.string("record_button", "");
   g.enable_switch = gpio.string("enable_switch", "");
   g.buttons_active_low = gpio.boolean("buttons_active_low", g.buttons_active_low);
+  const std::string bias = gpio.one_of("input_bias", "auto", {"auto", "pull-up", "pull-down", "disable", "as-is"});
+  if (bias == "pull-up") g.input_bias = GpioBias::kPullUp;
+  if (bias == "pull-down") g.input_bias = GpioBias::kPullDown;
+  if (bias == "disable") g.input_bias = GpioBias::kDisable;
+  if (bias == "as-is") g.input_bias = GpioBias::kAsIs;
   g.debounce_ms = gpio.integer("debounce_ms", g.debounce_ms, 0, 1000);
   gpio.reject_unknown_keys();
   outputs.reject_unknown_keys();

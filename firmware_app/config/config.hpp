@@ -14,6 +14,7 @@
 #include "core/side_profile.hpp"
 #include "core/timecode.hpp"
 #include "drivers/alsa_capture.hpp"
+#include "drivers/gpio_lines.hpp"
 #include "drivers/modbus_link.hpp"
 #include "drivers/ola_client.hpp"
 #include "drivers/serial_port.hpp"
@@ -103,6 +104,9 @@ struct GpioOptions {
   /// Hold-to-run: the drive follows the face only while this input is active.
   std::string enable_switch;
   bool buttons_active_low = true;  // buttons and the enable switch pull the line to ground
+  /// The inputs' bias in the chip; nullopt ("auto"): towards the inactive level (a pull-up for
+  /// active-low inputs), where the kernel can set it, so that an open input reads released.
+  std::optional<GpioBias> input_bias;
   int debounce_ms = 30;
 };
 

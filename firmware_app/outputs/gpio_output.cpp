@@ -33,22 +33,25 @@ Debouncer debouncer_for(const GpioOptions& options) {
   return Debouncer(std::int64_t{std::max(options.debounce_ms, 0)} * 1'000'000);
 }
 
-std::vector<GpioLineSpec> line_specs(const GpioOptions& options) {
+}  // namespace
+
+std::vector<GpioLineSpec> gpio_line_specs(const GpioOptions& options) {
   std::vector<GpioLineSpec> specs;
   for (const std::string* line : {&options.status_line, &options.fault_line})
     if (!line->empty()) specs.push_back({*line, GpioDirection::kOutput, false});
+  const GpioBias towards_released = options.buttons_active_low ? GpioBias::kPullUp : GpioBias::kPullDown;
   for (const std::string* line : {&options.calibrate_button, &options.record_button, &options.enable_switch})
-    if (!line->empty()) specs.push_back({*line, GpioDirection::kInput, options.buttons_active_low});
+    if (!line->empty())
+      specs.push_back({*line, GpioDirection::kInput, options.buttons_active_low,
+                       options.input_bias.value_or(towards_released), options.input_bias.has_value()});
   return specs;
 }
 
-}  // namespace
-
 std::unique_ptr<GpioLines> open_gpio_chip(const GpioOptions& options) {
-  return open_gpiod_chip(options.chip, line_specs(options));
+  return open_gpiod_chip(options.chip, gpio_line_specs(options));
 }
 
-void check_gpio_chip(const GpioOptions& options) { check_gpiod_chip(options.chip, line_specs(options)); }
+void check_gpio_chip(const GpioOptions& options) { check_gpiod_chip(options.chip, gpio_line_specs(options)); }
 
 GpioOutput::GpioOutput(const GpioOptions& options, std::unique_ptr<GpioLines> lines, DriveControl& control)
     : lines_(std::move(lines)),

@@ -38,12 +38,17 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace lipdrive {
 
-/// Opens `options.chip` and requests the configured lines (status and fault as outputs,
-/// the buttons as inputs, active-low if `buttons_active_low`); unused lines ("") are not
-/// requested. Throws GpioError naming the chip and the line.
+/// The configured lines: status and fault as outputs, the buttons and the enable switch as
+/// inputs, active-low if `buttons_active_low`, with `input_bias` (by default the chip's
+/// resistor towards the released level, where the kernel can set it); unused lines ("") are
+/// left out.
+std::vector<GpioLineSpec> gpio_line_specs(const GpioOptions& options);
+/// Opens `options.chip` and requests gpio_line_specs(options). Throws GpioError naming the
+/// chip and the line.
 std::unique_ptr<GpioLines> open_gpio_chip(const GpioOptions& options);
 /// Looks up the chip and the configured lines without requesting them (check_gpiod_chip).
 void check_gpio_chip(const GpioOptions& options);
