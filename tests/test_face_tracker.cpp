@@ -560,11 +560,14 @@ std::shared_ptr<const CascadeFaceDetector> face_cascade() {
   return cascade;
 }
 
-// The generated face with its right half (on the screen) at 15 % of its brightness: a face lit
-// from one side, which dlib's HOG filters miss at its own size and at twice it.
+// The generated face with its right half (on the screen) at 16 % of its brightness: a face lit
+// from one side, which dlib's HOG filters miss at its own size and at twice it. The face
+// cascade's votes swing with differences under a grey level (docs/method.md 1): at 15 % the
+// fixture gathered 8 as decoded on x86 (7 are needed) and 6 as decoded on arm64; at 16 %, 12
+// and 11.
 cv::Mat face_half_in_shadow(const cv::Mat& face) {
   cv::Mat shadowed = face.clone();
-  shadowed.colRange(face.cols / 2, face.cols) *= 0.15;
+  shadowed.colRange(face.cols / 2, face.cols) *= 0.16;
   return shadowed;
 }
 
