@@ -21,16 +21,6 @@ int error_code_of(const std::system_error& error) { return error.code().value();
 /// the setting (EOPNOTSUPP, or the kernel's internal ENOTSUPP, 524).
 bool cannot_set_bias(int code) { return code == EINVAL || code == EOPNOTSUPP || code == 524; }
 
-const char* bias_name(GpioBias bias) {
-  switch (bias) {
-    case GpioBias::kPullUp: return "pull-up";
-    case GpioBias::kPullDown: return "pull-down";
-    case GpioBias::kDisable: return "bias off";
-    case GpioBias::kAsIs: break;
-  }
-  return "bias as the board set it";
-}
-
 [[noreturn]] void fail(const std::string& chip, const std::string& reason) {
   throw GpioError("gpio chip " + chip + ": " + reason);
 }
@@ -131,9 +121,10 @@ class GpiodChipLines final : public GpioLines {
     const std::bitset<32> flags = gpiod_request_flags(spec), without_bias = gpiod_request_flags(as_is);
     int code = try_request(line, spec, flags);
     if (code != 0 && flags != without_bias && cannot_set_bias(code)) {
-      const std::string what = "line " + spec.line + ": the kernel cannot set its " + bias_name(spec.bias) + " (" +
+      const std::string what = "line " + spec.line + ": the kernel cannot set input_bias \"" +
+                               std::string(kGpioBiasNames[static_cast<std::size_t>(spec.bias)]) + "\" (" +
                                std::system_category().message(code) + ")";
-      if (spec.bias_required) fail(what + "; input_bias = \"as-is\" leaves it to the board's resistor");
+      if (spec.bias != GpioBias::kAuto) fail(what + "; input_bias = \"as-is\" leaves it to the board's resistor");
       spdlog::warn("gpio chip {}: {}: it rests on the board's resistor", chip_name_, what);
       code = try_request(line, spec, without_bias);
     }
@@ -179,10 +170,12 @@ std::bitset<32> gpiod_request_flags(const GpioLineSpec& spec) {
   std::bitset<32> flags;
   if (spec.active_low) flags |= gpiod::line_request::FLAG_ACTIVE_LOW;
   if (spec.direction == GpioDirection::kInput) {
-    switch (spec.bias) {
+    const GpioBias towards_inactive = spec.active_low ? GpioBias::kPullUp : GpioBias::kPullDown;
+    switch (spec.bias == GpioBias::kAuto ? towards_inactive : spec.bias) {
       case GpioBias::kPullUp: flags |= gpiod::line_request::FLAG_BIAS_PULL_UP; break;
       case GpioBias::kPullDown: flags |= gpiod::line_request::FLAG_BIAS_PULL_DOWN; break;
       case GpioBias::kDisable: flags |= gpiod::line_request::FLAG_BIAS_DISABLE; break;
+      case GpioBias::kAuto:
       case GpioBias::kAsIs: break;
     }
   }

@@ -9,10 +9,12 @@
 // setting and reading a line are single ioctls on the chip's line handles.
 #pragma once
 
+#include <array>
 #include <bitset>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace lipdrive {
@@ -26,20 +28,21 @@ class GpioError : public std::runtime_error {
 enum class GpioDirection { kOutput, kInput };
 
 /// The chip's own resistor on an input, which holds the line where nothing drives it (an open
-/// contact, a cut cable). kAsIs leaves it as the board and the device tree set it.
-enum class GpioBias { kAsIs, kPullUp, kPullDown, kDisable };
+/// contact, a cut cable); libgpiod's bias flags, Linux 5.5 or later. kAuto: towards the line's
+/// inactive level (a pull-up for an active-low input), and left off with a warning naming the
+/// line where the kernel cannot set it. kPullUp, kPullDown, kDisable: exactly that, and a
+/// request the kernel cannot meet fails (GpioError). kAsIs: as the board and its device tree
+/// set it.
+enum class GpioBias { kAuto, kPullUp, kPullDown, kDisable, kAsIs };
+/// Their names in the configuration ([outputs.gpio] input_bias), in GpioBias order.
+inline constexpr std::array<std::string_view, 5> kGpioBiasNames{"auto", "pull-up", "pull-down", "disable", "as-is"};
 
 struct GpioLineSpec {
   std::string line;  // offset ("17") or name ("GPIO17")
   GpioDirection direction = GpioDirection::kOutput;
   /// The line is active (reads or drives true) at low voltage: buttons that pull to ground.
   bool active_low = false;
-  /// Inputs: the bias asked of the chip (libgpiod's bias flags: Linux 5.5 or later, and a chip
-  /// that has the resistors). Where the kernel or the chip cannot set it, `bias_required`
-  /// makes the request fail (GpioError saying so); otherwise the line is requested without it
-  /// and a warning names the line.
-  GpioBias bias = GpioBias::kAsIs;
-  bool bias_required = false;
+  GpioBias bias = GpioBias::kAsIs;  // inputs only
 };
 
 /// libgpiod v1's request flags (gpiod::line_request::FLAG_*) for `spec`: active-low, and the

@@ -329,8 +329,9 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
 
 TEST_F(ConfigTest, GpioInputBiasIsAutomaticUnlessNamed) {
   write("", "[outputs.gpio]\nenable_switch = \"GPIO24\"\n");
-  EXPECT_FALSE(load_config(file_).outputs.gpio.input_bias.has_value()) << "auto by default";
-  for (const auto& [name, bias] : {std::pair{"pull-up", GpioBias::kPullUp}, std::pair{"pull-down", GpioBias::kPullDown},
+  EXPECT_EQ(load_config(file_).outputs.gpio.input_bias, GpioBias::kAuto) << "auto by default";
+  for (const auto& [name, bias] : {std::pair{"auto", GpioBias::kAuto}, std::pair{"pull-up", GpioBias::kPullUp},
+                                   std::pair{"pull-down", GpioBias::kPullDown},
                                    std::pair{"disable", GpioBias::kDisable}, std::pair{"as-is", GpioBias::kAsIs}}) {
     write("", fmt::format("[outputs.gpio]\ninput_bias = \"{}\"\n", name));
     EXPECT_EQ(load_config(file_).outputs.gpio.input_bias, bias) << name;

@@ -353,30 +353,30 @@ TEST(GpioOutput, WithoutAnEnableSwitchTheDriveStaysEnabledEvenWhenTheChipIsLost)
 }
 
 TEST(GpioOutput, InputsRestReleasedThroughTheChipsResistorUnlessConfiguredOtherwise) {
-  // An input nothing drives (an open contact, a cut cable) must read released: active-low
-  // inputs get the chip's pull-up, active-high ones its pull-down, where the kernel can set it.
+  // An input nothing drives (an open contact, a cut cable) must read released: by default
+  // active-low inputs get the chip's pull-up, active-high ones its pull-down, where the kernel
+  // can set it; a bias named in the configuration is asked for exactly.
   GpioOptions options = all_lines_and_switch();
-  for (const bool active_low : {true, false}) {
-    options.buttons_active_low = active_low;
-    for (const GpioLineSpec& spec : gpio_line_specs(options)) {
-      SCOPED_TRACE(spec.line);
-      if (spec.direction == GpioDirection::kOutput) {
-        EXPECT_EQ(spec.bias, GpioBias::kAsIs);
-        continue;
+  using Request = gpiod::line_request;
+  for (const GpioBias bias : {GpioBias::kAuto, GpioBias::kDisable}) {
+    options.input_bias = bias;
+    for (const bool active_low : {true, false}) {
+      options.buttons_active_low = active_low;
+      const std::vector<GpioLineSpec> specs = gpio_line_specs(options);
+      ASSERT_EQ(specs.size(), 5u);
+      for (const GpioLineSpec& spec : specs) {
+        SCOPED_TRACE(spec.line);
+        if (spec.direction == GpioDirection::kOutput) {
+          EXPECT_EQ(gpiod_request_flags(spec), std::bitset<32>()) << "outputs drive their line";
+          continue;
+        }
+        EXPECT_EQ(spec.bias, bias);
+        const std::bitset<32> pull = bias == GpioBias::kDisable ? Request::FLAG_BIAS_DISABLE
+                                     : active_low               ? Request::FLAG_BIAS_PULL_UP
+                                                                : Request::FLAG_BIAS_PULL_DOWN;
+        EXPECT_EQ(gpiod_request_flags(spec), active_low ? Request::FLAG_ACTIVE_LOW | pull : pull);
       }
-      EXPECT_EQ(spec.active_low, active_low);
-      EXPECT_EQ(spec.bias, active_low ? GpioBias::kPullUp : GpioBias::kPullDown);
-      EXPECT_FALSE(spec.bias_required) << "a kernel that cannot set it leaves it to the board's resistor";
     }
-  }
-  // Named in the configuration: exactly that, and a kernel that cannot set it is an error.
-  options.input_bias = GpioBias::kDisable;
-  const std::vector<GpioLineSpec> specs = gpio_line_specs(options);
-  ASSERT_EQ(specs.size(), 5u);
-  for (const GpioLineSpec& spec : specs) {
-    if (spec.direction == GpioDirection::kOutput) continue;
-    EXPECT_EQ(spec.bias, GpioBias::kDisable) << spec.line;
-    EXPECT_TRUE(spec.bias_required) << spec.line;
   }
 }
 
@@ -387,6 +387,8 @@ TEST(GpiodChipLines, TheRequestAsksForTheBiasOfInputsBesideActiveLow) {
   };
   EXPECT_EQ(flags(GpioDirection::kInput, true, GpioBias::kPullUp),
             Request::FLAG_ACTIVE_LOW | Request::FLAG_BIAS_PULL_UP);
+  EXPECT_EQ(flags(GpioDirection::kInput, true, GpioBias::kPullDown),
+            Request::FLAG_ACTIVE_LOW | Request::FLAG_BIAS_PULL_DOWN);
   EXPECT_EQ(flags(GpioDirection::kInput, false, GpioBias::kPullDown), Request::FLAG_BIAS_PULL_DOWN);
   EXPECT_EQ(flags(GpioDirection::kInput, false, GpioBias::kDisable), Request::FLAG_BIAS_DISABLE);
   EXPECT_EQ(flags(GpioDirection::kInput, true, GpioBias::kAsIs), Request::FLAG_ACTIVE_LOW);

@@ -622,11 +622,8 @@ void read_outputs(Section outputs, Config& config) {
   g.record_button = gpio.string("record_button", "");
   g.enable_switch = gpio.string("enable_switch", "");
   g.buttons_active_low = gpio.boolean("buttons_active_low", g.buttons_active_low);
-  const std::string bias = gpio.one_of("input_bias", "auto", {"auto", "pull-up", "pull-down", "disable", "as-is"});
-  if (bias == "pull-up") g.input_bias = GpioBias::kPullUp;
-  if (bias == "pull-down") g.input_bias = GpioBias::kPullDown;
-  if (bias == "disable") g.input_bias = GpioBias::kDisable;
-  if (bias == "as-is") g.input_bias = GpioBias::kAsIs;
+  const std::string bias = gpio.one_of("input_bias", "auto", kGpioBiasNames);
+  g.input_bias = static_cast<GpioBias>(std::ranges::find(kGpioBiasNames, bias) - kGpioBiasNames.begin());
   g.debounce_ms = gpio.integer("debounce_ms", g.debounce_ms, 0, 1000);
   gpio.reject_unknown_keys();
   outputs.reject_unknown_keys();

@@ -104,9 +104,9 @@ struct GpioOptions {
   /// Hold-to-run: the drive follows the face only while this input is active.
   std::string enable_switch;
   bool buttons_active_low = true;  // buttons and the enable switch pull the line to ground
-  /// The inputs' bias in the chip; nullopt ("auto"): towards the inactive level (a pull-up for
-  /// active-low inputs), where the kernel can set it, so that an open input reads released.
-  std::optional<GpioBias> input_bias;
+  /// The inputs' bias in the chip (GpioBias); auto: towards the released level, where the
+  /// kernel can set it, so that an open input reads released.
+  GpioBias input_bias = GpioBias::kAuto;
   int debounce_ms = 30;
 };
 

@@ -39,11 +39,8 @@ std::vector<GpioLineSpec> gpio_line_specs(const GpioOptions& options) {
   std::vector<GpioLineSpec> specs;
   for (const std::string* line : {&options.status_line, &options.fault_line})
     if (!line->empty()) specs.push_back({*line, GpioDirection::kOutput, false});
-  const GpioBias towards_released = options.buttons_active_low ? GpioBias::kPullUp : GpioBias::kPullDown;
   for (const std::string* line : {&options.calibrate_button, &options.record_button, &options.enable_switch})
-    if (!line->empty())
-      specs.push_back({*line, GpioDirection::kInput, options.buttons_active_low,
-                       options.input_bias.value_or(towards_released), options.input_bias.has_value()});
+    if (!line->empty()) specs.push_back({*line, GpioDirection::kInput, options.buttons_active_low, options.input_bias});
   return specs;
 }
 

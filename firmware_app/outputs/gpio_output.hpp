@@ -43,9 +43,8 @@
 namespace lipdrive {
 
 /// The configured lines: status and fault as outputs, the buttons and the enable switch as
-/// inputs, active-low if `buttons_active_low`, with `input_bias` (by default the chip's
-/// resistor towards the released level, where the kernel can set it); unused lines ("") are
-/// left out.
+/// inputs, active-low if `buttons_active_low`, with `input_bias`; unused lines ("") are left
+/// out.
 std::vector<GpioLineSpec> gpio_line_specs(const GpioOptions& options);
 /// Opens `options.chip` and requests gpio_line_specs(options). Throws GpioError naming the
 /// chip and the line.
