@@ -30,9 +30,9 @@ double inside(const Landmarks2D& landmarks, int i, int image_width, int image_he
 
 }  // namespace
 
-bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height) {
+bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height, double within) {
   for (int i = ibug::kJawFirst; i <= ibug::kJawLast; ++i)
-    if (inside(landmarks, i, image_width, image_height) < 0) return true;
+    if (inside(landmarks, i, image_width, image_height) < within) return true;
   return false;
 }
 
@@ -127,7 +127,7 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
       last = next;
       predictor_.predict_median(gray, next, landmarks);
     }
-    if (!looks_like_a_face(gray, landmarks)) continue;
+    if (!looks_like_a_face(gray, last, landmarks)) continue;
     if (source == BoxSource::kCascade && !still_cascade_->sees_an_eye(gray, landmarks)) continue;
     const std::pair rank(!jaw_off_picture(landmarks, gray.cols, gray.rows), interocular_distance(landmarks));
     if (!best || rank > best->rank) best = Candidate{box, landmarks, rank};
@@ -138,13 +138,20 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
   return accept(gray, landmarks, true);
 }
 
-bool FaceTracker::looks_like_a_face(const cv::Mat& gray, const Landmarks2D& landmarks) const {
-  return predictor_.feature_contrast() >= settings_.min_feature_contrast &&
-         plausible_face(landmarks, gray.cols, gray.rows, settings_.min_interocular_px);
+bool FaceTracker::looks_like_a_face(const cv::Mat& gray, const FaceBox& box, const Landmarks2D& landmarks) {
+  if (predictor_.feature_contrast() < settings_.min_feature_contrast ||
+      !plausible_face(landmarks, gray.cols, gray.rows, settings_.min_interocular_px))
+    return false;
+  const double iod = interocular_distance(landmarks);
+  if (!jaw_off_picture(landmarks, gray.cols, gray.rows, kJawOffPicture * iod)) return true;
+  predictor_.predict(gray, box, mirrored_, BeyondTheEdge::kMirrored);
+  const auto mouth = Eigen::seqN(ibug::kMouthCornerRight, kNumLandmarks - ibug::kMouthCornerRight);
+  return (mirrored_(Eigen::all, mouth) - landmarks(Eigen::all, mouth)).colwise().norm().mean() <=
+         kMouthMovedBeyondTheEdge * iod;
 }
 
 bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring) {
-  if (!acquiring && !looks_like_a_face(gray, landmarks)) return false;
+  if (!acquiring && !looks_like_a_face(gray, box_, landmarks)) return false;
   // The detector found this face: its look is the reference for the frames tracked after it.
   // A face too near the image border for the template is taken once it has moved in.
   if (acquiring || !face_.captured()) {

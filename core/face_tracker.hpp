@@ -14,7 +14,8 @@
 // points wherever its box is, so after a cut, a face leaving the frame or a hand over the
 // lens it would follow whatever is there. The track is dropped when the landmarks are
 // implausible (outside the image, but for a jaw line the picture's edge cuts a little; a
-// degenerate face size or aspect; eyes/nose/mouth out of order), when the predictor's feature
+// degenerate face size or aspect; eyes/nose/mouth out of order; with the jaw at the edge, a
+// mouth that moves when the picture is mirrored beyond it), when the predictor's feature
 // pixels have no contrast (a blank or covered frame), when the upper face around them no
 // longer looks like the one the detector acquired
 // (core/face_check.hpp: normalised correlation of a luma grid, a few microseconds), when the
@@ -92,6 +93,14 @@ inline constexpr double kJawOffPicture = 0.07;
 /// in inter-ocular distances: an edge nearer the lips than this misplaces them.
 inline constexpr double kMouthInCutPicture = 0.15;
 
+/// With the jaw line at the picture's edge (within kJawOffPicture of it, or beyond), how far
+/// the mouth (landmarks 48-67, mean, in inter-ocular distances) may move when the predictor
+/// sees the picture mirrored beyond the edge instead of black. A picture that cuts through the
+/// mouth leaves the predictor free to draw the whole lower face up into it, the mouth 0.3
+/// inter-ocular distances above the lips; what lies beyond the edge then decides where the
+/// mouth goes (docs/method.md 1, "A picture that cuts through the mouth"). The bound is the
+/// false-track bound of every tracked frame.
+inline constexpr double kMouthMovedBeyondTheEdge = 0.1;
 /// How far a face may roll in the picture (radians either way) for the shape predictor to
 /// find its landmarks from an upright box, as dlib's detector gives and its training used: at
 /// 10 and 20 degrees the mouth lies within 0.01 inter-ocular distances of where it is in the
@@ -99,8 +108,9 @@ inline constexpr double kMouthInCutPicture = 0.15;
 /// turned by the excess (docs/method.md 1, "A rolled head").
 inline constexpr double kUprightRoll = 10 * std::numbers::pi / 180;
 
-/// Whether a point of the jaw line (0-16) lies beyond the picture's edge.
-bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height);
+/// Whether a point of the jaw line (0-16) lies beyond the picture's edge, or less than
+/// `within` pixels inside it.
+bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height, double within = 0);
 
 /// The geometric sanity checks the tracker applies to every frame's landmarks.
 bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_height, double min_interocular_px);
@@ -159,8 +169,10 @@ class FaceTracker {
   enum class BoxSource { kDlib, kCascade };
   bool acquire_among(const std::vector<FaceBox>& faces, double scale, BoxSource source, const cv::Mat& gray,
                      Landmarks2D& landmarks);
-  /// The last prediction's feature pixels have contrast and its landmarks a face's layout.
-  bool looks_like_a_face(const cv::Mat& gray, const Landmarks2D& landmarks) const;
+  /// The last prediction, from `box`, gave landmarks with a face's layout and feature pixels
+  /// with contrast, and (the jaw line at the picture's edge) a mouth that stays where it is
+  /// when the predictor sees the picture mirrored beyond the edge (kMouthMovedBeyondTheEdge).
+  bool looks_like_a_face(const cv::Mat& gray, const FaceBox& box, const Landmarks2D& landmarks);
   /// Whether the landmarks are the face: on acquisition (already checked) its look becomes
   /// the reference; while tracking they must look like a face and like that reference.
   bool accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring);
@@ -176,6 +188,7 @@ class FaceTracker {
   bool still_ = false;      // the frame after reset(Next::kStill) is a still photograph
   cv::Mat resized_;         // the frame the detector searches when not at its own size
   FaceBox box_;             // where the next tracked frame looks: derived from the last landmarks
+  Landmarks2D mirrored_;    // looks_like_a_face's prediction with the picture mirrored beyond its edge
   bool tracking_ = false;
 };
 

@@ -575,8 +575,8 @@ ShapePredictor::ShapePredictor(std::shared_ptr<const ShapePredictorData> data)
 // dlib's impl::extract_feature_pixel_values: each feature pixel is its anchor landmark plus
 // its mean-shape offset turned by the similarity between the mean and the current shape,
 // mapped from box units to the image and rounded to the nearest pixel; outside the image
-// it reads 0.
-void ShapePredictor::read_feature_pixels(const cv::Mat& gray, const FaceBox& box, int cascade) {
+// it reads 0 (or, kMirrored, the pixel mirrored at the edge).
+void ShapePredictor::read_feature_pixels(const cv::Mat& gray, const FaceBox& box, int cascade, BeyondTheEdge beyond) {
   const ShapePredictorData& d = *data_;
   const Eigen::Matrix2f tform = similarity_linear_part(d.initial_shape_.data(), shape_.data());
   const BoxToImage to_image(box);
@@ -590,8 +590,12 @@ void ShapePredictor::read_feature_pixels(const cv::Mat& gray, const FaceBox& box
     const float v = tform(1, 0) * dx + tform(1, 1) * dy + shape_[2 * a + 1];
     const Eigen::Vector2d p = to_image(u, v);
     // Compared before the conversion to an integer, which only an in-range value may take.
-    const double x = std::floor(p.x() + 0.5);
-    const double y = std::floor(p.y() + 0.5);
+    double x = std::floor(p.x() + 0.5);
+    double y = std::floor(p.y() + 0.5);
+    if (beyond == BeyondTheEdge::kMirrored) {
+      x = x < 0 ? -x : x >= gray.cols ? 2.0 * (gray.cols - 1) - x : x;
+      y = y < 0 ? -y : y >= gray.rows ? 2.0 * (gray.rows - 1) - y : y;
+    }
     const bool inside = x >= 0 && y >= 0 && x < gray.cols && y < gray.rows;
     feature_pixels_[i] =
         inside ? static_cast<float>(gray.ptr<std::uint8_t>(static_cast<int>(y))[static_cast<int>(x)]) : 0.0f;
@@ -609,13 +613,13 @@ const ShapePredictorData::Leaf& ShapePredictor::chosen_leaf(int tree) const {
   return data_->leaf_increments_[static_cast<std::size_t>(tree) * leaves_per_tree + leaves_[tree]];
 }
 
-void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out) {
+void ShapePredictor::predict(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out, BeyondTheEdge beyond) {
   const ShapePredictorData& d = *data_;
   constexpr int kShapeSize = ShapePredictorData::kShapeSize;
   const int splits = (1 << d.tree_depth_) - 1;
   std::copy(d.initial_shape_.begin(), d.initial_shape_.end(), shape_.begin());
   for (int c = 0; c < d.num_cascades(); ++c) {
-    read_feature_pixels(gray, box, c);
+    read_feature_pixels(gray, box, c, beyond);
     const int first_tree = d.cascade_first_tree_[c], end_tree = d.cascade_first_tree_[c + 1];
     // The pixels are fixed within a cascade, so all its trees are walked first; the leaf
     // vectors (scattered over ~49 MB) are then summed in dlib's order, fetched ahead.

@@ -150,13 +150,18 @@ class ShapePredictorData {
 };
 
 /// Evaluates shared predictor data with its own scratch; one per thread.
+/// What a feature pixel beyond the picture's edge reads: 0, as dlib reads it (and the
+/// predictor was trained with), or the picture mirrored at its edge (as
+/// cv::BORDER_REFLECT_101 pads it; 0 beyond the mirrored picture too).
+enum class BeyondTheEdge { kBlack, kMirrored };
+
 class ShapePredictor {
  public:
   explicit ShapePredictor(std::shared_ptr<const ShapePredictorData> data);
 
   /// The 68 landmarks in image pixels for a face in `box` of the 8-bit luma image `gray`
   /// (CV_8UC1, any stride). Allocates nothing.
-  void predict(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out);
+  void predict(const cv::Mat& gray, const FaceBox& box, Landmarks2D& out, BeyondTheEdge beyond = BeyondTheEdge::kBlack);
 
   /// The landmarks of a face whose box is only roughly placed (a detector's): per coordinate,
   /// the median of predict() from `box` and from six boxes around it (scaled by 1 -/+ 5 %,
@@ -186,7 +191,7 @@ class ShapePredictor {
   const std::shared_ptr<const ShapePredictorData>& data() const { return data_; }
 
  private:
-  void read_feature_pixels(const cv::Mat& gray, const FaceBox& box, int cascade);
+  void read_feature_pixels(const cv::Mat& gray, const FaceBox& box, int cascade, BeyondTheEdge beyond);
   /// The leaf the last walk of `tree` ended in (leaves_).
   const ShapePredictorData::Leaf& chosen_leaf(int tree) const;
 

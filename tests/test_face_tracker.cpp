@@ -235,6 +235,36 @@ TEST(ShapePredictor, TheMedianOfSevenStartsMovesLessWithTheBoxThanOneStart) {
   EXPECT_EQ(allocations, 0);
 }
 
+// The picture mirrored beyond its edge (what the tracker compares a mouth the edge comes near
+// with) reads as the same picture padded with cv::BORDER_REFLECT_101, and changes nothing
+// where every feature pixel lies inside.
+TEST(ShapePredictor, BeyondTheEdgeReadsBlackOrThePictureMirrored) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  const cv::Mat face = generated_face();
+  ASSERT_FALSE(face.empty()) << "no frame in " << kFixtureDir / "talking_face.avi";
+  const auto faces = detect(face);
+  ASSERT_FALSE(faces.empty());
+  const FaceBox box{faces.front().left(), faces.front().top(), faces.front().right(), faces.front().bottom()};
+  ShapePredictor predictor(test::shared_predictor());
+  Landmarks2D black, mirrored;
+  predictor.predict(face, box, black);
+  predictor.predict(face, box, mirrored, BeyondTheEdge::kMirrored);
+  EXPECT_EQ(mirrored, black) << "a face in the middle of the picture";
+
+  const int mouth = static_cast<int>(0.5 * (black(1, ibug::kInnerLipTop) + black(1, ibug::kInnerLipBottom)));
+  const cv::Mat cut = face.rowRange(0, mouth).clone();  // a copy: a view's border is its parent's pixels
+  const int pad = cut.rows;
+  cv::Mat padded;
+  cv::copyMakeBorder(cut, padded, pad, pad, pad, pad, cv::BORDER_REFLECT_101);
+  Landmarks2D expected;
+  predictor.predict(padded, {box.left + pad, box.top + pad, box.right + pad, box.bottom + pad}, expected);
+  expected.array() -= pad;
+  predictor.predict(cut, box, black);
+  predictor.predict(cut, box, mirrored, BeyondTheEdge::kMirrored);
+  EXPECT_LT((mirrored - expected).cwiseAbs().maxCoeff(), 1e-6) << "cut through the mouth";
+  EXPECT_GT((black - expected).cwiseAbs().maxCoeff(), 1) << "the cut picture is read beyond its edge";
+}
+
 // warm() only reads: the daemon calls it between frames (`[scheduling] warm_ahead_us`), so it
 // must change no prediction and allocate nothing.
 TEST(ShapePredictor, WarmingChangesNoPredictionAndAllocatesNothing) {
@@ -749,8 +779,15 @@ TEST(FaceTracker, AFaceWhoseJawTheEdgeCutsIsStillTracked) {
     for (const auto& [cut, dx, name] : {std::tuple{chin_cut, 0, "chin"}, std::tuple{side_cut, left, "side"}}) {
       FaceTracker tracker(test::shared_predictor());
       ASSERT_EQ(tracker.track(cut, landmarks), TrackStatus::kAcquired) << name << " cut, face " << n;
+      // The jaw at the edge: every tracked frame also reads the picture mirrored beyond it,
+      // without allocating.
+      test::count_allocations_on_this_thread(true);
+      const long before = test::allocation_count();
       for (int f = 0; f < 5; ++f)
         ASSERT_EQ(tracker.track(cut, landmarks), TrackStatus::kTracking) << name << " cut, face " << n;
+      const long allocations = test::allocation_count() - before;
+      test::count_allocations_on_this_thread(false);
+      EXPECT_EQ(allocations, 0) << name << " cut, face " << n;
       EXPECT_LT(mouth_error(landmarks, dx), 0.02) << name << " cut, face " << n;
     }
     const int mouth = static_cast<int>(0.5 * (expected(1, ibug::kInnerLipTop) + expected(1, ibug::kInnerLipBottom)));
@@ -1050,17 +1087,41 @@ FaultReport run_fault_clip(const FaultClip& clip) {
   return report;
 }
 
+/// Whether all of `p` lies in a picture of `width` x `height` pixels.
+bool in_picture(const Landmarks2D& p, int width, int height) {
+  return p.allFinite() && (p.row(0).array() >= 0).all() && (p.row(0).array() < width).all() &&
+         (p.row(1).array() >= 0).all() && (p.row(1).array() < height).all();
+}
+
+/// From frame `cut` on, the face of `frames` (whose landmarks are `clean`) sinks at `speed` px
+/// per frame, a wall above it, until the picture's bottom edge runs through the middle of its
+/// mouth, and stays there: a rig that slipped, a camera knocked upwards.
+FaultClip sinking_clip(const std::string& source, const std::vector<cv::Mat>& frames,
+                       const std::vector<Landmarks2D>& clean, int cut, double speed) {
+  const int width = frames.front().cols, height = frames.front().rows;
+  const double lowest = height - 0.5 * (clean[cut](1, ibug::kInnerLipTop) + clean[cut](1, ibug::kInnerLipBottom));
+  FaultClip sink;
+  sink.name = source + " sinks";
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const double offset = static_cast<int>(f) < cut ? 0 : std::min(lowest, speed * (static_cast<int>(f) - cut + 1));
+    sink.frames.push_back(shifted_frame(frames[f], 0, offset, 90));
+    Landmarks2D truth = clean[f];
+    truth.row(1).array() += offset;
+    sink.truth.push_back(truth);
+    sink.visible.push_back(in_picture(truth, width, height));
+  }
+  return sink;
+}
+
 /// Cut at frame `cut` from `first` to `second` moved `dx` pixels aside; leave: from `cut` on, the
-/// face moves out to the right at `speed` px per frame, a wall behind it; cover: from `cut` on,
-/// something dark rises over 8 frames, stays 15 and goes away over 8.
+/// face moves out to the right at `speed` px per frame, a wall behind it; sink: sinking_clip at
+/// the same speed; cover: from `cut` on, something dark rises over 8 frames, stays 15 and goes
+/// away over 8.
 std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<cv::Mat>& first,
                                    const std::vector<cv::Mat>& second, int cut, double dx, double speed) {
   const std::vector<Landmarks2D> clean = clean_landmarks(first);
   const int n = static_cast<int>(first.size()), width = first.front().cols, height = first.front().rows;
-  const auto inside = [&](const Landmarks2D& p) {
-    return p.allFinite() && (p.row(0).array() >= 0).all() && (p.row(0).array() < width).all() &&
-           (p.row(1).array() >= 0).all() && (p.row(1).array() < height).all();
-  };
+  const auto inside = [&](const Landmarks2D& p) { return in_picture(p, width, height); };
   std::vector<FaultClip> clips;
 
   FaultClip cut_clip;
@@ -1085,6 +1146,7 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
     leave.visible.push_back(inside(truth));
   }
   clips.push_back(std::move(leave));
+  clips.push_back(sinking_clip(source, first, clean, cut, speed));
 
   FaultClip cover;
   cover.name = source + " covered";
@@ -1138,6 +1200,21 @@ TEST(FaceTracker, NeverTracksWhatReplacedAGridFace) {
   const auto first = grid_frames("bbaf2n"), second = grid_frames("lgaf4n");
   if (first.empty() || second.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
   check_fault_clips(fault_clips("GRID", first, second, 38, 120, 8));
+}
+
+// A face twice GRID's size, as a close camera sees it, sinks until the picture's edge runs
+// through its mouth. dlib's detector still finds the face there, and the predictor drew the
+// whole lower face up into the picture, the mouth on the upper lip: 16 frames of 75 were
+// tracked 0.12-0.17 inter-ocular distances from the face (the mouth 0.22-0.29) before the
+// tracker compared the mouth with the picture mirrored beyond its edge.
+TEST(FaceTracker, NeverTracksAFaceWhoseMouthThePicturesEdgeCuts) {
+  for (const char* name : {"bbaf2n", "lgaf4n"}) {
+    std::vector<cv::Mat> frames = grid_frames(name);
+    if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+    for (cv::Mat& frame : frames) cv::resize(frame, frame, {}, 2.0, 2.0, cv::INTER_LINEAR);
+    check_fault_clips(
+        {sinking_clip(fmt::format("{} at twice its size", name), frames, clean_landmarks(frames), 20, 16)});
+  }
 }
 
 }  // namespace
