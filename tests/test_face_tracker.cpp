@@ -101,6 +101,14 @@ std::vector<dlib::rectangle> detect(const cv::Mat& gray) {
   return dlib_detector()(dlib::cv_image<unsigned char>(gray));
 }
 
+/// dlib's detector box of the first face in `gray` (empty when it finds none).
+FaceBox detected_box(const cv::Mat& gray) {
+  const auto faces = gray.empty() ? std::vector<dlib::rectangle>{} : detect(gray);
+  return faces.empty()
+             ? FaceBox{}
+             : FaceBox{faces.front().left(), faces.front().top(), faces.front().right(), faces.front().bottom()};
+}
+
 /// Our predictor (the compact file the build converts from Debian's) against dlib's own on
 /// face boxes: the mean distance of the 68 landmarks over the inter-ocular distance, and how
 /// many trees chose dlib's leaf. The same arithmetic on leaves stored in 24 bits
@@ -207,9 +215,8 @@ TEST(ShapePredictor, TheMedianOfSevenStartsMovesLessWithTheBoxThanOneStart) {
   int boxes = 0;
   long allocations = 0;
   for (const cv::Mat& image : {face, rotated}) {
-    const auto faces = detect(image);
-    ASSERT_FALSE(faces.empty());
-    const FaceBox box{faces.front().left(), faces.front().top(), faces.front().right(), faces.front().bottom()};
+    const FaceBox box = detected_box(image);
+    ASSERT_FALSE(box.empty());
     Landmarks2D one, seven, moved;
     predictor.predict(image, box, one);
     predictor.predict_median(image, box, seven);
@@ -241,10 +248,8 @@ TEST(ShapePredictor, TheMedianOfSevenStartsMovesLessWithTheBoxThanOneStart) {
 TEST(ShapePredictor, BeyondTheEdgeReadsBlackOrThePictureMirrored) {
   LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();
-  ASSERT_FALSE(face.empty()) << "no frame in " << kFixtureDir / "talking_face.avi";
-  const auto faces = detect(face);
-  ASSERT_FALSE(faces.empty());
-  const FaceBox box{faces.front().left(), faces.front().top(), faces.front().right(), faces.front().bottom()};
+  const FaceBox box = detected_box(face);
+  ASSERT_FALSE(box.empty()) << "no face in the first frame of " << kFixtureDir / "talking_face.avi";
   ShapePredictor predictor(test::shared_predictor());
   Landmarks2D black, mirrored;
   predictor.predict(face, box, black);
@@ -270,10 +275,8 @@ TEST(ShapePredictor, BeyondTheEdgeReadsBlackOrThePictureMirrored) {
 TEST(ShapePredictor, WarmingChangesNoPredictionAndAllocatesNothing) {
   LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();
-  ASSERT_FALSE(face.empty()) << "no frame in " << kFixtureDir / "talking_face.avi";
-  const auto faces = detect(face);
-  ASSERT_FALSE(faces.empty());
-  const FaceBox box{faces.front().left(), faces.front().top(), faces.front().right(), faces.front().bottom()};
+  const FaceBox box = detected_box(face);
+  ASSERT_FALSE(box.empty()) << "no face in the first frame of " << kFixtureDir / "talking_face.avi";
   const FaceBox moved{box.left + 6, box.top + 4, box.right + 6, box.bottom + 4};
   ShapePredictor warmed(test::shared_predictor()), cold(test::shared_predictor());
   Landmarks2D a, b;
