@@ -96,8 +96,8 @@ inline constexpr double kMouthInCutPicture = 0.15;
 /// With the jaw line at the picture's edge (within kJawOffPicture of it, or beyond), how far
 /// the mouth (landmarks 48-67, mean, in inter-ocular distances) may move when the predictor
 /// sees the picture mirrored beyond the edge instead of black. A picture that cuts through the
-/// mouth leaves the predictor free to draw the whole lower face up into it, the mouth 0.3
-/// inter-ocular distances above the lips; what lies beyond the edge then decides where the
+/// mouth leaves the predictor free to draw the whole lower face up into it, the mouth about
+/// 0.3 inter-ocular distances from the lips; what lies beyond the edge then decides where the
 /// mouth goes (docs/method.md 1, "A picture that cuts through the mouth"). The bound is the
 /// false-track bound of every tracked frame.
 inline constexpr double kMouthMovedBeyondTheEdge = 0.1;
@@ -171,7 +171,8 @@ class FaceTracker {
                      Landmarks2D& landmarks);
   /// The last prediction, from `box`, gave landmarks with a face's layout and feature pixels
   /// with contrast, and (the jaw line at the picture's edge) a mouth that stays where it is
-  /// when the predictor sees the picture mirrored beyond the edge (kMouthMovedBeyondTheEdge).
+  /// when the predictor sees the picture mirrored beyond the edge (kMouthMovedBeyondTheEdge;
+  /// that prediction is then the predictor's last, whose leaves warm() reads).
   bool looks_like_a_face(const cv::Mat& gray, const FaceBox& box, const Landmarks2D& landmarks);
   /// Whether the landmarks are the face: on acquisition (already checked) its look becomes
   /// the reference; while tracking they must look like a face and like that reference.
