@@ -34,6 +34,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <span>
@@ -1096,24 +1097,31 @@ bool in_picture(const Landmarks2D& p, int width, int height) {
          (p.row(1).array() >= 0).all() && (p.row(1).array() < height).all();
 }
 
+/// The face of `frames` (whose landmarks are `clean`) moved by `offset(f)` pixels in frame f,
+/// a wall behind it.
+FaultClip moving_clip(std::string name, const std::vector<cv::Mat>& frames, const std::vector<Landmarks2D>& clean,
+                      const std::function<Eigen::Vector2d(int)>& offset) {
+  FaultClip clip;
+  clip.name = std::move(name);
+  for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
+    const Eigen::Vector2d moved = offset(f);
+    clip.frames.push_back(shifted_frame(frames[f], moved.x(), moved.y(), 90));
+    const Landmarks2D truth = clean[f].colwise() + moved;
+    clip.truth.push_back(truth);
+    clip.visible.push_back(in_picture(truth, frames[f].cols, frames[f].rows));
+  }
+  return clip;
+}
+
 /// From frame `cut` on, the face of `frames` (whose landmarks are `clean`) sinks at `speed` px
-/// per frame, a wall above it, until the picture's bottom edge runs through the middle of its
-/// mouth, and stays there: a rig that slipped, a camera knocked upwards.
+/// per frame until the picture's bottom edge runs through the middle of its mouth, and stays
+/// there: a rig that slipped, a camera knocked upwards.
 FaultClip sinking_clip(const std::string& source, const std::vector<cv::Mat>& frames,
                        const std::vector<Landmarks2D>& clean, int cut, double speed) {
-  const int width = frames.front().cols, height = frames.front().rows;
-  const double lowest = height - 0.5 * (clean[cut](1, ibug::kInnerLipTop) + clean[cut](1, ibug::kInnerLipBottom));
-  FaultClip sink;
-  sink.name = source + " sinks";
-  for (std::size_t f = 0; f < frames.size(); ++f) {
-    const double offset = static_cast<int>(f) < cut ? 0 : std::min(lowest, speed * (static_cast<int>(f) - cut + 1));
-    sink.frames.push_back(shifted_frame(frames[f], 0, offset, 90));
-    Landmarks2D truth = clean[f];
-    truth.row(1).array() += offset;
-    sink.truth.push_back(truth);
-    sink.visible.push_back(in_picture(truth, width, height));
-  }
-  return sink;
+  const double lowest =
+      frames.front().rows - 0.5 * (clean[cut](1, ibug::kInnerLipTop) + clean[cut](1, ibug::kInnerLipBottom));
+  return moving_clip(source + " sinks", frames, clean,
+                     [=](int f) { return Eigen::Vector2d(0, f < cut ? 0 : std::min(lowest, speed * (f - cut + 1))); });
 }
 
 /// Cut at frame `cut` from `first` to `second` moved `dx` pixels aside; leave: from `cut` on, the
@@ -1124,7 +1132,6 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
                                    const std::vector<cv::Mat>& second, int cut, double dx, double speed) {
   const std::vector<Landmarks2D> clean = clean_landmarks(first);
   const int n = static_cast<int>(first.size()), width = first.front().cols, height = first.front().rows;
-  const auto inside = [&](const Landmarks2D& p) { return in_picture(p, width, height); };
   std::vector<FaultClip> clips;
 
   FaultClip cut_clip;
@@ -1135,20 +1142,11 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
   for (int f = 0; f < cut; ++f) cut_clip.frames.push_back(first[f]), cut_clip.truth.push_back(clean[f]);
   for (std::size_t f = 0; f < moved.size(); ++f)
     cut_clip.frames.push_back(moved[f]), cut_clip.truth.push_back(moved_truth[f]);
-  for (const Landmarks2D& p : cut_clip.truth) cut_clip.visible.push_back(inside(p));
+  for (const Landmarks2D& p : cut_clip.truth) cut_clip.visible.push_back(in_picture(p, width, height));
   clips.push_back(std::move(cut_clip));
 
-  FaultClip leave;
-  leave.name = source + " leaves";
-  for (int f = 0; f < n; ++f) {
-    const double offset = f < cut ? 0 : speed * (f - cut + 1);
-    leave.frames.push_back(shifted_frame(first[f], offset, 0, 90));
-    Landmarks2D truth = clean[f];
-    truth.row(0).array() += offset;
-    leave.truth.push_back(truth);
-    leave.visible.push_back(inside(truth));
-  }
-  clips.push_back(std::move(leave));
+  clips.push_back(moving_clip(source + " leaves", first, clean,
+                              [=](int f) { return Eigen::Vector2d(f < cut ? 0 : speed * (f - cut + 1), 0); }));
   clips.push_back(sinking_clip(source, first, clean, cut, speed));
 
   FaultClip cover;
@@ -1159,7 +1157,7 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
     cover.frames.push_back(covered_frame(first[f], fraction, 30, static_cast<std::uint64_t>(f)));
     cover.truth.push_back(clean[f]);
     const double covered_from = height * (1 - fraction);
-    cover.visible.push_back(inside(clean[f]) && (clean[f].row(1).array() < covered_from).all());
+    cover.visible.push_back(in_picture(clean[f], width, height) && (clean[f].row(1).array() < covered_from).all());
   }
   clips.push_back(std::move(cover));
   return clips;
