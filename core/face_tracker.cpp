@@ -64,6 +64,9 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
   // below the eyes (about 1.3 for an adult, more with the mouth wide open).
   if (!(0 < depth(ibug::kNoseTip) && depth(ibug::kNoseTip) < mouth && mouth < depth(ibug::kChin))) return false;
   if (depth(ibug::kChin) < 0.7 || depth(ibug::kChin) > 2.2) return false;
+  // The upper lip above the lower, column by column (61 over 67, 62 over 66, 63 over 65).
+  for (int k = -1; k <= 1; ++k)
+    if (depth(ibug::kInnerLipBottom - k) - depth(ibug::kInnerLipTop + k) < -kLipsCrossed) return false;
   return lateral(ibug::kMouthCornerRight) < lateral(ibug::kMouthCornerLeft);
 }
 

@@ -30,4 +30,10 @@ cv::Mat covered_frame(const cv::Mat& gray, double fraction, double luma, std::ui
   return out;
 }
 
+cv::Mat carded_frame(const cv::Mat& gray, const cv::Rect& area, double luma) {
+  cv::Mat out = gray.clone();
+  out(area & cv::Rect(0, 0, gray.cols, gray.rows)).setTo(luma);
+  return out;
+}
+
 }  // namespace lipdrive

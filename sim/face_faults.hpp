@@ -1,6 +1,6 @@
 // Frames in which the tracked face stops being where the tracker last saw it, made from a
 // clean clip (DESIGN.md 6): a cut to another shot with the face elsewhere, the face leaving
-// the frame, a hand over the lens. The face's true landmarks follow from the clean clip's
+// the frame, a hand over the lens, a card before the mouth. The face's true landmarks follow from the clean clip's
 // (shifted by the same offset), so a test can tell a frame tracked on the face from one
 // tracked on whatever replaced it.
 #pragma once
@@ -18,5 +18,8 @@ cv::Mat shifted_frame(const cv::Mat& gray, double dx, double dy, int fill = -1);
 /// `gray` with its bottom `fraction` (0..1) hidden behind something dark and out of focus
 /// rising in front of the lens: blurred noise around `luma`, the same for a given `seed`.
 cv::Mat covered_frame(const cv::Mat& gray, double fraction, double luma = 30, std::uint64_t seed = 1);
+
+/// `gray` with a flat card of `luma` held in front of `area` (a script page before the mouth).
+cv::Mat carded_frame(const cv::Mat& gray, const cv::Rect& area, double luma = 225);
 
 }  // namespace lipdrive

@@ -969,6 +969,12 @@ TEST(FaceTracker, ImplausibleLandmarksAreRejected) {
   EXPECT_TRUE(plausible_face(outside, face.cols, face.rows, 12));
   outside(0, ibug::kJawFirst) = -0.1 * iod;
   EXPECT_FALSE(plausible_face(outside, face.cols, face.rows, 12));
+  // The upper inner lip below the lower one: a mouth turned over, as over a card before it.
+  Landmarks2D crossed = landmarks;
+  crossed(1, ibug::kInnerLipTop) = landmarks(1, ibug::kInnerLipBottom) + 0.02 * iod;
+  EXPECT_TRUE(plausible_face(crossed, face.cols, face.rows, 12));
+  crossed(1, ibug::kInnerLipTop) = landmarks(1, ibug::kInnerLipBottom) + 0.06 * iod;
+  EXPECT_FALSE(plausible_face(crossed, face.cols, face.rows, 12));
   Landmarks2D tiny = landmarks / 50.0;
   EXPECT_FALSE(plausible_face(tiny, face.cols, face.rows, 12));
 }
@@ -1043,7 +1049,7 @@ TEST(FaceAppearance, MatchesItselfUnderAnyExposureAndNotElsewhere) {
 struct FaultClip {
   std::string name;
   std::vector<cv::Mat> frames;
-  std::vector<Landmarks2D> truth;  // NaN: the face is not in the frame
+  std::vector<Landmarks2D> truth;  // NaN: the face (or its mouth) is not in the frame
   std::vector<bool> visible;       // the whole face is in the frame and uncovered
 };
 
@@ -1124,10 +1130,32 @@ FaultClip sinking_clip(const std::string& source, const std::vector<cv::Mat>& fr
                      [=](int f) { return Eigen::Vector2d(0, f < cut ? 0 : std::min(lowest, speed * (f - cut + 1))); });
 }
 
+/// From frame `from`, for 15 frames, a white card in front of the mouth of `frames` (whose
+/// landmarks are `clean`), 0.3 inter-ocular distances beyond the lips: no mouth to track.
+FaultClip carded_clip(const std::string& source, const std::vector<cv::Mat>& frames,
+                      const std::vector<Landmarks2D>& clean, int from) {
+  FaultClip clip;
+  clip.name = source + " card before the mouth";
+  for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
+    const Landmarks2D& p = clean[f];
+    const bool carded = f >= from && f < from + 15;
+    const double margin = 0.3 * interocular_distance(p);
+    const auto mouth = p.middleCols<20>(ibug::kMouthCornerRight);
+    const Eigen::Vector2d low = mouth.rowwise().minCoeff().array() - margin,
+                          high = mouth.rowwise().maxCoeff().array() + margin;
+    clip.frames.push_back(
+        carded ? carded_frame(frames[f], cv::Rect(cv::Point(low.x(), low.y()), cv::Point(high.x(), high.y())))
+               : frames[f]);
+    clip.truth.push_back(carded ? Landmarks2D::Constant(std::nan("")) : p);
+    clip.visible.push_back(!carded && in_picture(p, frames[f].cols, frames[f].rows));
+  }
+  return clip;
+}
+
 /// Cut at frame `cut` from `first` to `second` moved `dx` pixels aside; leave: from `cut` on, the
 /// face moves out to the right at `speed` px per frame, a wall behind it; sink: sinking_clip at
 /// the same speed; cover: from `cut` on, something dark rises over 8 frames, stays 15 and goes
-/// away over 8.
+/// away over 8; card: carded_clip from `cut`.
 std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<cv::Mat>& first,
                                    const std::vector<cv::Mat>& second, int cut, double dx, double speed) {
   const std::vector<Landmarks2D> clean = clean_landmarks(first);
@@ -1160,6 +1188,7 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
     cover.visible.push_back(in_picture(clean[f], width, height) && (clean[f].row(1).array() < covered_from).all());
   }
   clips.push_back(std::move(cover));
+  clips.push_back(carded_clip(source, first, clean, cut));
   return clips;
 }
 
@@ -1172,7 +1201,7 @@ void check_fault_clips(const std::vector<FaultClip>& clips) {
                                     fmt::format("{}/{}", r.tracked, clip.frames.size()));
     ::testing::Test::RecordProperty(fmt::format("{}_lost_while_visible", clip.name), r.lost_while_visible);
     fmt::print(
-        "{:<24} {:>4} frames {:>4} tracked {:>3} false tracks {:>3} lost while the face was in full view, worst "
+        "{:<30} {:>4} frames {:>4} tracked {:>3} false tracks {:>3} lost while the face was in full view, worst "
         "tracked error {:.3f} IOD\n",
         clip.name, clip.frames.size(), r.tracked, r.false_tracks, r.lost_while_visible, r.worst_error);
     EXPECT_EQ(r.false_tracks, 0);
