@@ -11,6 +11,12 @@
 // template by normalised correlation, which ignores gain and offset (lighting, exposure).
 // A sample is the mean of four bilinear taps around it, so the grid does not alias on a
 // large face. About 500 taps: a few microseconds.
+//
+// The same grid over the lower face (from the nose tip to below the lower lip, still in the frame
+// the eyes and nose set) tells whether something is before the mouth: a hand, a card, a microphone's
+// windscreen hide the lips, and the predictor puts a mouth on them all the same. Speech moves
+// the lower face, but not so far from the same face's look that a cover is nearer to it
+// (docs/method.md 1, "Something over the mouth").
 #pragma once
 
 #include "core/landmarks.hpp"
@@ -21,9 +27,17 @@
 
 namespace lipdrive {
 
+/// The part of the face a FaceAppearance samples.
+enum class FaceRegion {
+  kUpperFace,  // brows, eyes, nose: what speech does not move
+  kLowerFace,  // from the nose tip to below the lower lip: the mouth and what may be before it
+};
+
 class FaceAppearance {
  public:
   static constexpr int kColumns = 12, kRows = 10, kSamples = kColumns * kRows;
+
+  explicit FaceAppearance(FaceRegion region = FaceRegion::kUpperFace) : region_(region) {}
 
   /// Takes the template from a frame whose face was just detected. False (and no template)
   /// when the grid leaves the image or the face has no texture.
@@ -32,6 +46,7 @@ class FaceAppearance {
   struct Match {
     double similarity = -1;  // normalised correlation in [-1, 1] with the template
     double luma = 0;         // mean luma of this frame's grid
+    bool in_picture = false;  // the grid lies in the image
   };
   /// This frame's grid, sampled at `landmarks`, against the template; similarity -1 without
   /// a template, when the grid leaves the image or has no texture. Allocates nothing.
@@ -42,6 +57,7 @@ class FaceAppearance {
   double luma() const { return luma_; }
 
  private:
+  FaceRegion region_;
   std::array<float, kSamples> template_{};  // zero mean, unit norm
   double luma_ = 0;
   bool captured_ = false;

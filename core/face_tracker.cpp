@@ -162,12 +162,63 @@ bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool
     appearance_ = 1;
     face_luma_ = face_.luma();
     mouth_ratio_ = 0;
+    // The face found again where the last one was tracked (a head-mounted camera's performer
+    // after a cover or a hand) keeps its lower face's look; another face takes its own.
+    if (found_where_last_tracked(landmarks)) {
+      look_at_mouth(gray, landmarks);
+    } else {
+      mouth_look_.capture(gray, landmarks);
+      mouth_hidden_ = false;
+      hidden_frames_ = 0;
+      settling_frames_ = settings_.settle_mouth_look_frames;
+    }
+    remember_place(landmarks);
     return true;
   }
   const FaceAppearance::Match match = face_.compare(gray, landmarks);
   appearance_ = match.similarity;
   face_luma_ = match.luma;
-  return appearance_ >= settings_.min_appearance;
+  if (appearance_ < settings_.min_appearance) return false;
+  look_at_mouth(gray, landmarks);
+  remember_place(landmarks);
+  return true;
+}
+
+namespace {
+Eigen::Vector2d eye_centre(const Landmarks2D& p) {
+  return 0.5 * (p.col(ibug::kRightEyeOuter) + p.col(ibug::kLeftEyeOuter));
+}
+}  // namespace
+
+bool FaceTracker::found_where_last_tracked(const Landmarks2D& landmarks) const {
+  if (!(last_interocular_ > 0) || !mouth_look_.captured()) return false;
+  const double size = interocular_distance(landmarks) / last_interocular_;
+  return (eye_centre(landmarks) - last_eyes_).norm() < 0.5 * last_interocular_ && size > 0.8 && size < 1.25;
+}
+
+void FaceTracker::remember_place(const Landmarks2D& landmarks) {
+  last_eyes_ = eye_centre(landmarks);
+  last_interocular_ = interocular_distance(landmarks);
+}
+
+void FaceTracker::look_at_mouth(const cv::Mat& gray, const Landmarks2D& landmarks) {
+  // No look of the lower face yet (out of the picture, or flat, at acquisition): take it now.
+  if (!mouth_look_.captured()) mouth_look_.capture(gray, landmarks);
+  const FaceAppearance::Match match = mouth_look_.compare(gray, landmarks);
+  // A lower face the picture's edge cuts (a chin off a close camera's picture) is not judged.
+  mouth_hidden_ = mouth_look_.captured() && match.in_picture && match.similarity < settings_.min_mouth_appearance;
+  hidden_frames_ = mouth_hidden_ ? hidden_frames_ + 1 : 0;
+  // A lower face much like the look becomes the look: it follows speech and what changes slowly,
+  // not what appears at once. Over a new face's first frames every frame does: a face is often
+  // found as something leaves it (a hand lowered, a cover receding).
+  const bool settling = settling_frames_ > 0;
+  if (settling) --settling_frames_;
+  if (settling || match.similarity >= settings_.follow_mouth_appearance ||
+      hidden_frames_ >= settings_.new_mouth_look_after) {
+    mouth_look_.capture(gray, landmarks);
+    mouth_hidden_ = false;
+    hidden_frames_ = 0;
+  }
 }
 
 TrackStatus FaceTracker::track(const cv::Mat& gray, Landmarks2D& landmarks) {

@@ -22,7 +22,8 @@
 // caller's 3DMM fit cannot explain them (check_fit), or when the lips turn much darker or
 // brighter than the face (check_mouth: something over the mouth). A frame that fails the
 // first three runs the detector at once, so a cut to a face elsewhere loses no frame; after
-// the last two the next frame does.
+// the last two the next frame does. A lower face that no longer looks like the track's
+// (a hand, a card before the mouth) keeps the track but hides the mouth (mouth_hidden).
 //
 // Licence: the Debian predictor /usr/share/dlib/shape_predictor_68_face_landmarks.dat is
 // trained on the iBUG 300-W data set, whose licence excludes commercial use; a product
@@ -61,6 +62,19 @@ struct TrackerSettings {
   /// (either way): anything else is a hand or an object over the mouth.
   double min_mouth_luma = 0.4, max_mouth_luma = 2.0;
   double max_mouth_luma_change = 1.5;
+  /// Below this normalised correlation of the lower face (FaceRegion::kLowerFace) with its look,
+  /// something is before the mouth (mouth_hidden). The look is taken when a new face is acquired
+  /// (a face found again where the last was tracked keeps it), from every frame of its first
+  /// `settle_mouth_look_frames`, and then from every frame at least `follow_mouth_appearance`
+  /// like it: speech and slow changes, not a hand raised. A talking face keeps its lower face
+  /// above 0.51 of its first look over the 52 GRID clips, above 0.41 on the generated one; a hand or a card before the
+  /// mouth reads under 0.3 in most frames (docs/method.md 1, "Something over the mouth"). After `new_mouth_look_after`
+  /// hidden frames in a row the look is taken afresh: a track that began with a hand before the
+  /// mouth would otherwise never measure it.
+  double min_mouth_appearance = 0.3;
+  double follow_mouth_appearance = 0.7;
+  int settle_mouth_look_frames = 10;
+  int new_mouth_look_after = 50;
   /// The narrowest face box, in pixels, a camera's frames are searched for. dlib's detector
   /// slides an 80-pixel window (kDetectorWindowPx) and finds faces from about that size up; a
   /// camera whose face is always larger (a head-mounted rig's fills the picture) lets it search
@@ -151,6 +165,7 @@ class FaceTracker {
   void reset(Next next) {
     tracking_ = false;
     still_ = next == Next::kStill;
+    last_interocular_ = 0;
   }
   /// Feeds back the lips' luma the caller measured on the landmarks track() returned
   /// (LipGap::lip_luma): a mouth much darker or brighter, relative to the upper face, than at
@@ -167,6 +182,10 @@ class FaceTracker {
 
   /// FaceAppearance similarity of the last tracked frame (1 on acquisition).
   double appearance() const { return appearance_; }
+  /// Whether something is before the mouth in the last tracked frame: the lower face looks
+  /// unlike the track's (TrackerSettings::min_mouth_appearance). The face is still tracked (its
+  /// box follows it), but its mouth's landmarks are not the mouth's.
+  bool mouth_hidden() const { return mouth_hidden_; }
 
  private:
   bool acquire(const cv::Mat& gray, Landmarks2D& landmarks);
@@ -183,13 +202,25 @@ class FaceTracker {
   /// Whether the landmarks are the face: on acquisition (already checked) its look becomes
   /// the reference; while tracking they must look like a face and like that reference.
   bool accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring);
+  /// Compares the lower face with the track's look of it: sets mouth_hidden_.
+  void look_at_mouth(const cv::Mat& gray, const Landmarks2D& landmarks);
+  /// Whether a face just acquired is where the last accepted frame's was: its eye centre within
+  /// half an inter-ocular distance, its size within 25 %.
+  bool found_where_last_tracked(const Landmarks2D& landmarks) const;
+  void remember_place(const Landmarks2D& landmarks);
 
   TrackerSettings settings_;
   ShapePredictor predictor_;
   FaceDetector detector_;  // a copy of the predictor's
   std::optional<CascadeFaceDetector> still_cascade_;  // a copy of the settings'
   FaceAppearance face_;
+  FaceAppearance mouth_look_{FaceRegion::kLowerFace};
   double appearance_ = 0;
+  bool mouth_hidden_ = false;
+  int hidden_frames_ = 0;    // tracked frames in a row with the mouth hidden
+  int settling_frames_ = 0;  // frames left in which every frame becomes the lower face's look
+  Eigen::Vector2d last_eyes_ = Eigen::Vector2d::Zero();  // the last accepted frame's eye centre
+  double last_interocular_ = 0;                          // and inter-ocular distance; 0 = none
   double face_luma_ = 0;    // this frame's upper-face luma
   double mouth_ratio_ = 0;  // lips over upper face at the start of the track; 0 = not yet seen
   bool still_ = false;      // the frame after reset(Next::kStill) is a still photograph

@@ -30,9 +30,13 @@ cv::Mat covered_frame(const cv::Mat& gray, double fraction, double luma, std::ui
   return out;
 }
 
-cv::Mat carded_frame(const cv::Mat& gray, const cv::Rect& area, double luma) {
+cv::Mat held_before(const cv::Mat& gray, const cv::Rect& area, const cv::Mat& thing) {
   cv::Mat out = gray.clone();
-  out(area & cv::Rect(0, 0, gray.cols, gray.rows)).setTo(luma);
+  const cv::Rect covered = area & cv::Rect(0, 0, gray.cols, gray.rows);
+  if (covered.empty()) return out;
+  cv::Mat scaled;
+  cv::resize(thing, scaled, area.size(), 0, 0, cv::INTER_LINEAR);
+  scaled(cv::Rect(covered.tl() - area.tl(), covered.size())).copyTo(out(covered));
   return out;
 }
 

@@ -1,8 +1,8 @@
 // Frames in which the tracked face stops being where the tracker last saw it, made from a
 // clean clip (DESIGN.md 6): a cut to another shot with the face elsewhere, the face leaving
-// the frame, a hand over the lens, a card before the mouth. The face's true landmarks follow from the clean clip's
-// (shifted by the same offset), so a test can tell a frame tracked on the face from one
-// tracked on whatever replaced it.
+// the frame, a hand over the lens, a card or a hand before the mouth. The face's true landmarks follow from the clean
+// clip's (shifted by the same offset), so a test can tell a frame tracked on the face from one tracked on whatever
+// replaced it.
 #pragma once
 
 #include <opencv2/core/mat.hpp>
@@ -19,7 +19,8 @@ cv::Mat shifted_frame(const cv::Mat& gray, double dx, double dy, int fill = -1);
 /// rising in front of the lens: blurred noise around `luma`, the same for a given `seed`.
 cv::Mat covered_frame(const cv::Mat& gray, double fraction, double luma = 30, std::uint64_t seed = 1);
 
-/// `gray` with a flat card of `luma` held in front of `area` (a script page before the mouth).
-cv::Mat carded_frame(const cv::Mat& gray, const cv::Rect& area, double luma = 225);
+/// `gray` with `thing` (a card, a hand: any picture of the same type) held in front of `area`,
+/// scaled to cover it.
+cv::Mat held_before(const cv::Mat& gray, const cv::Rect& area, const cv::Mat& thing);
 
 }  // namespace lipdrive

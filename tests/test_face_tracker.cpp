@@ -1130,32 +1130,43 @@ FaultClip sinking_clip(const std::string& source, const std::vector<cv::Mat>& fr
                      [=](int f) { return Eigen::Vector2d(0, f < cut ? 0 : std::min(lowest, speed * (f - cut + 1))); });
 }
 
-/// From frame `from`, for 15 frames, a white card in front of the mouth of `frames` (whose
-/// landmarks are `clean`), 0.3 inter-ocular distances beyond the lips: no mouth to track.
-FaultClip carded_clip(const std::string& source, const std::vector<cv::Mat>& frames,
-                      const std::vector<Landmarks2D>& clean, int from) {
+/// From frame `from`, for `length` frames, `thing(frame, landmarks)` held in front of the mouth of
+/// `frames` (whose landmarks are `clean`), 0.3 inter-ocular distances beyond the lips: no mouth
+/// to track.
+FaultClip mouth_hidden_clip(std::string name, const std::vector<cv::Mat>& frames, const std::vector<Landmarks2D>& clean,
+                            int from, int length,
+                            const std::function<cv::Mat(const cv::Mat&, const Landmarks2D&)>& thing) {
   FaultClip clip;
-  clip.name = source + " card before the mouth";
+  clip.name = std::move(name);
   for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
     const Landmarks2D& p = clean[f];
-    const bool carded = f >= from && f < from + 15;
+    const bool hidden = f >= from && f < from + length;
     const double margin = 0.3 * interocular_distance(p);
     const auto mouth = p.middleCols<20>(ibug::kMouthCornerRight);
     const Eigen::Vector2d low = mouth.rowwise().minCoeff().array() - margin,
                           high = mouth.rowwise().maxCoeff().array() + margin;
-    clip.frames.push_back(
-        carded ? carded_frame(frames[f], cv::Rect(cv::Point(low.x(), low.y()), cv::Point(high.x(), high.y())))
-               : frames[f]);
-    clip.truth.push_back(carded ? Landmarks2D::Constant(std::nan("")) : p);
-    clip.visible.push_back(!carded && in_picture(p, frames[f].cols, frames[f].rows));
+    const cv::Rect area(cv::Point(low.x(), low.y()), cv::Point(high.x(), high.y()));
+    clip.frames.push_back(hidden ? held_before(frames[f], area, thing(frames[f], p)) : frames[f]);
+    clip.truth.push_back(hidden ? Landmarks2D::Constant(std::nan("")) : p);
+    clip.visible.push_back(!hidden && in_picture(p, frames[f].cols, frames[f].rows));
   }
   return clip;
+}
+
+/// A white card; a hand: the face's own forehead above its brows (between the brows' middles,
+/// from 0.15 to 0.55 inter-ocular distances above them, as far as the picture holds it), enlarged.
+cv::Mat white_card(const cv::Mat&, const Landmarks2D&) { return cv::Mat(1, 1, CV_8UC1, cv::Scalar(225)); }
+cv::Mat hand(const cv::Mat& frame, const Landmarks2D& p) {
+  const double iod = interocular_distance(p), brows = std::min(p(1, 19), p(1, 24));
+  const cv::Rect forehead(cv::Point(p(0, 19), brows - 0.55 * iod), cv::Point(p(0, 24), brows - 0.15 * iod));
+  return frame(forehead & cv::Rect(0, 0, frame.cols, frame.rows)).clone();
 }
 
 /// Cut at frame `cut` from `first` to `second` moved `dx` pixels aside; leave: from `cut` on, the
 /// face moves out to the right at `speed` px per frame, a wall behind it; sink: sinking_clip at
 /// the same speed; cover: from `cut` on, something dark rises over 8 frames, stays 15 and goes
-/// away over 8; card: carded_clip from `cut`.
+/// away over 8; a white card, then a hand, before the mouth for 15 frames (mouth_hidden_clip) from
+/// `cut`.
 std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<cv::Mat>& first,
                                    const std::vector<cv::Mat>& second, int cut, double dx, double speed) {
   const std::vector<Landmarks2D> clean = clean_landmarks(first);
@@ -1188,7 +1199,8 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
     cover.visible.push_back(in_picture(clean[f], width, height) && (clean[f].row(1).array() < covered_from).all());
   }
   clips.push_back(std::move(cover));
-  clips.push_back(carded_clip(source, first, clean, cut));
+  clips.push_back(mouth_hidden_clip(source + " card before the mouth", first, clean, cut, 15, white_card));
+  clips.push_back(mouth_hidden_clip(source + " hand before the mouth", first, clean, cut, 15, hand));
   return clips;
 }
 
@@ -1230,6 +1242,25 @@ TEST(FaceTracker, NeverTracksWhatReplacedAGridFace) {
   const auto first = grid_frames("bbaf2n"), second = grid_frames("lgaf4n");
   if (first.empty() || second.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
   check_fault_clips(fault_clips("GRID", first, second, 38, 120, 8));
+}
+
+// A track that begins with a hand before the mouth takes the hand for the lower face's look: its
+// frames read as lips, as a still's would (GRID bbaf2n: 17 of its 20). Once the hand is lowered
+// the mouth is hidden, until the look is taken afresh after
+// TrackerSettings::new_mouth_look_after frames; then every frame is measured.
+TEST(FaceTracker, ATrackBegunWithAHandBeforeTheMouthMeasuresTheMouthOnceItsLookIsRetaken) {
+  const std::vector<cv::Mat> frames = grid_frames("bbaf2n");
+  if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  constexpr int kLowered = 20;
+  const FaultClip clip = mouth_hidden_clip("hand from the start", frames, clean_landmarks(frames), 0, kLowered, hand);
+  FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
+  std::vector<bool> tracked;
+  for (const cv::Mat& frame : clip.frames) tracked.push_back(processor.process(frame, cv::Mat()).tracked);
+  const int measured_again =
+      static_cast<int>(std::find(tracked.begin() + kLowered, tracked.end(), true) - tracked.begin());
+  EXPECT_GT(measured_again, kLowered) << "the lowered hand did not hide the mouth";
+  EXPECT_LE(measured_again, kLowered + TrackerSettings{}.new_mouth_look_after);
+  EXPECT_EQ(std::count(tracked.begin() + measured_again, tracked.end(), false), 0);
 }
 
 // A face twice GRID's size, as a close camera sees it, sinks until the picture's edge runs

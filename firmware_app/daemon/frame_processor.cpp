@@ -60,7 +60,8 @@ const FrameMeasurement& FrameProcessor::process(const cv::Mat& gray, const cv::M
   const TrackStatus status = tracker_.track(gray, r.landmarks);
   r.landmarks_ms = ms_since(start);
   r.appearance = tracker_.appearance();
-  if (status == TrackStatus::kNoFace) return r;
+  // With something before the mouth the face is still tracked, but there is no mouth to measure.
+  if (status == TrackStatus::kNoFace || tracker_.mouth_hidden()) return r;
   // A newly acquired face may be another pose entirely, and a new identity another shape: do not
   // warm-start from the old one.
   if (status == TrackStatus::kAcquired || fit_afresh_) fit_ = Fitter::initial_output();
