@@ -28,6 +28,11 @@ double inside(const Landmarks2D& landmarks, int i, int image_width, int image_he
       {landmarks(0, i), image_width - 1 - landmarks(0, i), landmarks(1, i), image_height - 1 - landmarks(1, i)});
 }
 
+/// The middle of the outer eye corners.
+Eigen::Vector2d eye_centre(const Landmarks2D& p) {
+  return 0.5 * (p.col(ibug::kRightEyeOuter) + p.col(ibug::kLeftEyeOuter));
+}
+
 }  // namespace
 
 bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height, double within) {
@@ -183,12 +188,6 @@ bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool
   remember_place(landmarks);
   return true;
 }
-
-namespace {
-Eigen::Vector2d eye_centre(const Landmarks2D& p) {
-  return 0.5 * (p.col(ibug::kRightEyeOuter) + p.col(ibug::kLeftEyeOuter));
-}
-}  // namespace
 
 bool FaceTracker::found_where_last_tracked(const Landmarks2D& landmarks) const {
   if (!(last_interocular_ > 0) || !mouth_look_.captured()) return false;

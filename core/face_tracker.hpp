@@ -67,10 +67,11 @@ struct TrackerSettings {
   /// (a face found again where the last was tracked keeps it), from every frame of its first
   /// `settle_mouth_look_frames`, and then from every frame at least `follow_mouth_appearance`
   /// like it: speech and slow changes, not a hand raised. A talking face keeps its lower face
-  /// above 0.51 of its first look over the 52 GRID clips, above 0.41 on the generated one; a hand or a card before the
-  /// mouth reads under 0.3 in most frames (docs/method.md 1, "Something over the mouth"). After `new_mouth_look_after`
-  /// hidden frames in a row the look is taken afresh: a track that began with a hand before the
-  /// mouth would otherwise never measure it.
+  /// above 0.51 of its first look over the 52 GRID clips, above 0.41 on the generated one; a
+  /// hand or a card before the mouth reads under 0.3 in most frames (docs/method.md 1,
+  /// "Something over the mouth"). After `new_mouth_look_after` hidden frames in a row the look
+  /// is taken afresh: a track that began with a hand before the mouth would otherwise never
+  /// measure it.
   double min_mouth_appearance = 0.3;
   double follow_mouth_appearance = 0.7;
   int settle_mouth_look_frames = 10;
@@ -117,8 +118,8 @@ inline constexpr double kMouthInCutPicture = 0.15;
 inline constexpr double kMouthMovedBeyondTheEdge = 0.1;
 /// How far the inner lips may cross, in inter-ocular distances along the face's vertical: the
 /// upper inner lip (61-63) below the lower one (67-65). The landmarks of real mouths cross by
-/// their noise at most (0.012 over the 58 LFPW photographs, never over the 3,900 frames of the
-/// GRID clips); over a flat card held in front of the mouth the predictor turns the mouth over,
+/// their noise at most (0.012 over the 58 LFPW photographs, never over the 3,888 tracked frames
+/// of the GRID clips); over a flat card held in front of the mouth the predictor turns the mouth over,
 /// 0.08-0.18 (docs/method.md 1, "Something over the mouth").
 inline constexpr double kLipsCrossed = 0.04;
 /// How far a face may roll in the picture (radians either way) for the shape predictor to
