@@ -80,14 +80,21 @@ bool FaceAppearance::capture(const cv::Mat& gray, const Landmarks2D& landmarks) 
 
 FaceAppearance::Match FaceAppearance::compare(const cv::Mat& gray, const Landmarks2D& landmarks) const {
   Match match;
-  Grid grid;
   if (!captured_) return match;
-  const Sampled sampled = sample_grid(gray, landmarks, region_, grid, match.luma);
+  const Sampled sampled = sample_grid(gray, landmarks, region_, match.grid, match.luma);
   match.in_picture = sampled != Sampled::kOutside;
-  if (sampled != Sampled::kTextured) return match;
+  match.textured = sampled == Sampled::kTextured;
+  if (!match.textured) return match;
   match.similarity = 0;
-  for (int i = 0; i < kSamples; ++i) match.similarity += static_cast<double>(template_[i]) * grid[i];
+  for (int i = 0; i < kSamples; ++i) match.similarity += static_cast<double>(template_[i]) * match.grid[i];
   return match;
+}
+
+void FaceAppearance::take(const Match& match) {
+  captured_ = match.textured;
+  if (!captured_) return;
+  template_ = match.grid;
+  luma_ = match.luma;
 }
 
 }  // namespace lipdrive

@@ -47,10 +47,16 @@ class FaceAppearance {
     double similarity = -1;  // normalised correlation in [-1, 1] with the template
     double luma = 0;         // mean luma of this frame's grid
     bool in_picture = false;  // the grid lies in the image
+    bool textured = false;    // and has texture: `grid` is this frame's, normalised
+    std::array<float, kSamples> grid{};
   };
   /// This frame's grid, sampled at `landmarks`, against the template; similarity -1 without
   /// a template, when the grid leaves the image or has no texture. Allocates nothing.
   Match compare(const cv::Mat& gray, const Landmarks2D& landmarks) const;
+
+  /// Takes the grid a compare() sampled as the template, as capture() would from that frame
+  /// (no template when it had no texture), without sampling it again.
+  void take(const Match& match);
 
   bool captured() const { return captured_; }
   /// Mean luma of the template's grid.

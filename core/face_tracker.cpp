@@ -173,7 +173,6 @@ bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool
       look_at_mouth(gray, landmarks);
     } else {
       mouth_look_.capture(gray, landmarks);
-      mouth_hidden_ = false;
       hidden_frames_ = 0;
       settling_frames_ = settings_.settle_mouth_look_frames;
     }
@@ -205,8 +204,8 @@ void FaceTracker::look_at_mouth(const cv::Mat& gray, const Landmarks2D& landmark
   if (!mouth_look_.captured()) mouth_look_.capture(gray, landmarks);
   const FaceAppearance::Match match = mouth_look_.compare(gray, landmarks);
   // A lower face the picture's edge cuts (a chin off a close camera's picture) is not judged.
-  mouth_hidden_ = mouth_look_.captured() && match.in_picture && match.similarity < settings_.min_mouth_appearance;
-  hidden_frames_ = mouth_hidden_ ? hidden_frames_ + 1 : 0;
+  const bool hidden = mouth_look_.captured() && match.in_picture && match.similarity < settings_.min_mouth_appearance;
+  hidden_frames_ = hidden ? hidden_frames_ + 1 : 0;
   // A lower face much like the look becomes the look: it follows speech and what changes slowly,
   // not what appears at once. Over a new face's first frames every frame does: a face is often
   // found as something leaves it (a hand lowered, a cover receding).
@@ -214,8 +213,7 @@ void FaceTracker::look_at_mouth(const cv::Mat& gray, const Landmarks2D& landmark
   if (settling) --settling_frames_;
   if (settling || match.similarity >= settings_.follow_mouth_appearance ||
       hidden_frames_ >= settings_.new_mouth_look_after) {
-    mouth_look_.capture(gray, landmarks);
-    mouth_hidden_ = false;
+    mouth_look_.take(match);  // the grid just compared, not sampled again
     hidden_frames_ = 0;
   }
 }

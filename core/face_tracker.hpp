@@ -186,7 +186,7 @@ class FaceTracker {
   /// Whether something is before the mouth in the last tracked frame: the lower face looks
   /// unlike the track's (TrackerSettings::min_mouth_appearance). The face is still tracked (its
   /// box follows it), but its mouth's landmarks are not the mouth's.
-  bool mouth_hidden() const { return mouth_hidden_; }
+  bool mouth_hidden() const { return hidden_frames_ > 0; }
 
  private:
   bool acquire(const cv::Mat& gray, Landmarks2D& landmarks);
@@ -203,7 +203,7 @@ class FaceTracker {
   /// Whether the landmarks are the face: on acquisition (already checked) its look becomes
   /// the reference; while tracking they must look like a face and like that reference.
   bool accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool acquiring);
-  /// Compares the lower face with the track's look of it: sets mouth_hidden_.
+  /// Compares the lower face with the track's look of it: counts the hidden frames.
   void look_at_mouth(const cv::Mat& gray, const Landmarks2D& landmarks);
   /// Whether a face just acquired is where the last accepted frame's was: its eye centre within
   /// half an inter-ocular distance, its size within 25 %.
@@ -217,8 +217,7 @@ class FaceTracker {
   FaceAppearance face_;
   FaceAppearance mouth_look_{FaceRegion::kLowerFace};
   double appearance_ = 0;
-  bool mouth_hidden_ = false;
-  int hidden_frames_ = 0;    // tracked frames in a row with the mouth hidden
+  int hidden_frames_ = 0;    // tracked frames in a row with the mouth hidden (0: not hidden)
   int settling_frames_ = 0;  // frames left in which every frame becomes the lower face's look
   Eigen::Vector2d last_eyes_ = Eigen::Vector2d::Zero();  // the last accepted frame's eye centre
   double last_interocular_ = 0;                          // and inter-ocular distance; 0 = none
