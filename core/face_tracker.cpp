@@ -166,15 +166,17 @@ bool FaceTracker::accept(const cv::Mat& gray, const Landmarks2D& landmarks, bool
     face_.capture(gray, landmarks);
     appearance_ = 1;
     face_luma_ = face_.luma();
-    mouth_ratio_ = 0;
     // The face found again where the last one was tracked (a head-mounted camera's performer
-    // after a cover or a hand) keeps its lower face's look; another face takes its own.
+    // after a cover or a hand) keeps its lower face's look and its lips' luma; another face
+    // takes its own.
     if (found_where_last_tracked(landmarks)) {
       look_at_mouth(gray, landmarks);
     } else {
       mouth_look_.capture(gray, landmarks);
       hidden_frames_ = 0;
       settling_frames_ = settings_.settle_mouth_look_frames;
+      mouth_ratio_ = 0;
+      unlike_lips_frames_ = 0;
     }
     remember_place(landmarks);
     return true;
@@ -234,10 +236,16 @@ TrackStatus FaceTracker::track(const cv::Mat& gray, Landmarks2D& landmarks) {
 bool FaceTracker::check_mouth(double lip_luma) {
   if (!tracking_ || !(face_luma_ > 0) || !(lip_luma > 0)) return tracking_;
   const double ratio = lip_luma / face_luma_;
-  if (mouth_ratio_ == 0) mouth_ratio_ = ratio;
+  // The lips' luma of a new face; taken afresh, as the lower face's look is, after
+  // new_mouth_look_after frames in a row unlike it: lips that stay so are the lips.
+  if (mouth_ratio_ == 0 || unlike_lips_frames_ >= settings_.new_mouth_look_after) {
+    mouth_ratio_ = ratio;
+    unlike_lips_frames_ = 0;
+  }
   const double change = ratio > mouth_ratio_ ? ratio / mouth_ratio_ : mouth_ratio_ / ratio;
-  if (ratio < settings_.min_mouth_luma || ratio > settings_.max_mouth_luma || change > settings_.max_mouth_luma_change)
-    tracking_ = false;
+  const bool unlike = change > settings_.max_mouth_luma_change;
+  unlike_lips_frames_ = unlike ? unlike_lips_frames_ + 1 : 0;
+  if (ratio < settings_.min_mouth_luma || ratio > settings_.max_mouth_luma || unlike) tracking_ = false;
   return tracking_;
 }
 

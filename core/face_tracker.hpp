@@ -58,8 +58,10 @@ struct TrackerSettings {
   double min_appearance = 0.5;
   /// The lips' luma over the upper face's (FaceAppearance::luma) lies in this range on every
   /// face seen so far (0.54..1.45 over the 58 LFPW photographs, 0.71..0.86 over the GRID
-  /// clips) and may change by at most max_mouth_luma_change from the first frame of a track
-  /// (either way): anything else is a hand or an object over the mouth.
+  /// clips) and may change by at most max_mouth_luma_change from the first frame of the face's
+  /// track (either way; a face found again where it was tracked keeps it, for at most
+  /// `new_mouth_look_after` such frames in a row): anything else is a hand or an object over
+  /// the mouth.
   double min_mouth_luma = 0.4, max_mouth_luma = 2.0;
   double max_mouth_luma_change = 1.5;
   /// Below this normalised correlation of the lower face (FaceRegion::kLowerFace) with its look,
@@ -170,7 +172,8 @@ class FaceTracker {
   }
   /// Feeds back the lips' luma the caller measured on the landmarks track() returned
   /// (LipGap::lip_luma): a mouth much darker or brighter, relative to the upper face, than at
-  /// the start of the track drops it. Returns whether the frame is accepted.
+  /// the start of the face's track drops it (TrackerSettings::max_mouth_luma_change). Returns
+  /// whether the frame is accepted.
   bool check_mouth(double lip_luma);
 
   /// While a face is tracked, ShapePredictor::warm(): the predictor data the next frame will
@@ -222,7 +225,8 @@ class FaceTracker {
   Eigen::Vector2d last_eyes_ = Eigen::Vector2d::Zero();  // the last accepted frame's eye centre
   double last_interocular_ = 0;                          // and inter-ocular distance; 0 = none
   double face_luma_ = 0;    // this frame's upper-face luma
-  double mouth_ratio_ = 0;  // lips over upper face at the start of the track; 0 = not yet seen
+  double mouth_ratio_ = 0;  // lips over upper face at the start of the face's track; 0 = not yet seen
+  int unlike_lips_frames_ = 0;  // frames in a row whose lips' luma changed too far from it
   bool still_ = false;      // the frame after reset(Next::kStill) is a still photograph
   cv::Mat resized_;         // the frame the detector searches when not at its own size
   FaceBox box_;             // where the next tracked frame looks: derived from the last landmarks

@@ -40,4 +40,18 @@ cv::Mat held_before(const cv::Mat& gray, const cv::Rect& area, const cv::Mat& th
   return out;
 }
 
+cv::Rect before_the_mouth(const Landmarks2D& face) {
+  const double margin = 0.3 * interocular_distance(face);
+  const auto mouth = face.middleCols<20>(ibug::kMouthCornerRight);
+  const Eigen::Vector2d low = mouth.rowwise().minCoeff().array() - margin,
+                        high = mouth.rowwise().maxCoeff().array() + margin;
+  return {cv::Point(low.x(), low.y()), cv::Point(high.x(), high.y())};
+}
+
+cv::Mat hand_of(const cv::Mat& gray, const Landmarks2D& face) {
+  const double iod = interocular_distance(face), brows = std::min(face(1, 19), face(1, 24));
+  const cv::Rect forehead(cv::Point(face(0, 19), brows - 0.55 * iod), cv::Point(face(0, 24), brows - 0.15 * iod));
+  return gray(forehead & cv::Rect(0, 0, gray.cols, gray.rows)).clone();
+}
+
 }  // namespace lipdrive

@@ -1131,8 +1131,7 @@ FaultClip sinking_clip(const std::string& source, const std::vector<cv::Mat>& fr
 }
 
 /// From frame `from`, for `length` frames, `thing(frame, landmarks)` held in front of the mouth of
-/// `frames` (whose landmarks are `clean`), 0.3 inter-ocular distances beyond the lips: no mouth
-/// to track.
+/// `frames` (whose landmarks are `clean`), over before_the_mouth: no mouth to track.
 FaultClip mouth_hidden_clip(std::string name, const std::vector<cv::Mat>& frames, const std::vector<Landmarks2D>& clean,
                             int from, int length,
                             const std::function<cv::Mat(const cv::Mat&, const Landmarks2D&)>& thing) {
@@ -1141,26 +1140,15 @@ FaultClip mouth_hidden_clip(std::string name, const std::vector<cv::Mat>& frames
   for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
     const Landmarks2D& p = clean[f];
     const bool hidden = f >= from && f < from + length;
-    const double margin = 0.3 * interocular_distance(p);
-    const auto mouth = p.middleCols<20>(ibug::kMouthCornerRight);
-    const Eigen::Vector2d low = mouth.rowwise().minCoeff().array() - margin,
-                          high = mouth.rowwise().maxCoeff().array() + margin;
-    const cv::Rect area(cv::Point(low.x(), low.y()), cv::Point(high.x(), high.y()));
-    clip.frames.push_back(hidden ? held_before(frames[f], area, thing(frames[f], p)) : frames[f]);
+    clip.frames.push_back(hidden ? held_before(frames[f], before_the_mouth(p), thing(frames[f], p)) : frames[f]);
     clip.truth.push_back(hidden ? Landmarks2D::Constant(std::nan("")) : p);
     clip.visible.push_back(!hidden && in_picture(p, frames[f].cols, frames[f].rows));
   }
   return clip;
 }
 
-/// A white card; a hand: the face's own forehead above its brows (between the brows' middles,
-/// from 0.15 to 0.55 inter-ocular distances above them, as far as the picture holds it), enlarged.
+/// A white card (a hand: hand_of).
 cv::Mat white_card(const cv::Mat&, const Landmarks2D&) { return cv::Mat(1, 1, CV_8UC1, cv::Scalar(225)); }
-cv::Mat hand(const cv::Mat& frame, const Landmarks2D& p) {
-  const double iod = interocular_distance(p), brows = std::min(p(1, 19), p(1, 24));
-  const cv::Rect forehead(cv::Point(p(0, 19), brows - 0.55 * iod), cv::Point(p(0, 24), brows - 0.15 * iod));
-  return frame(forehead & cv::Rect(0, 0, frame.cols, frame.rows)).clone();
-}
 
 /// Cut at frame `cut` from `first` to `second` moved `dx` pixels aside; leave: from `cut` on, the
 /// face moves out to the right at `speed` px per frame, a wall behind it; sink: sinking_clip at
@@ -1200,7 +1188,7 @@ std::vector<FaultClip> fault_clips(const std::string& source, const std::vector<
   }
   clips.push_back(std::move(cover));
   clips.push_back(mouth_hidden_clip(source + " card before the mouth", first, clean, cut, 15, white_card));
-  clips.push_back(mouth_hidden_clip(source + " hand before the mouth", first, clean, cut, 15, hand));
+  clips.push_back(mouth_hidden_clip(source + " hand before the mouth", first, clean, cut, 15, hand_of));
   return clips;
 }
 
@@ -1252,7 +1240,8 @@ TEST(FaceTracker, ATrackBegunWithAHandBeforeTheMouthMeasuresTheMouthOnceItsLookI
   const std::vector<cv::Mat> frames = grid_frames("bbaf2n");
   if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
   constexpr int kLowered = 20;
-  const FaultClip clip = mouth_hidden_clip("hand from the start", frames, clean_landmarks(frames), 0, kLowered, hand);
+  const FaultClip clip =
+      mouth_hidden_clip("hand from the start", frames, clean_landmarks(frames), 0, kLowered, hand_of);
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
   std::vector<bool> tracked;
   for (const cv::Mat& frame : clip.frames) tracked.push_back(processor.process(frame, cv::Mat()).tracked);
@@ -1261,6 +1250,51 @@ TEST(FaceTracker, ATrackBegunWithAHandBeforeTheMouthMeasuresTheMouthOnceItsLookI
   EXPECT_GT(measured_again, kLowered) << "the lowered hand did not hide the mouth";
   EXPECT_LE(measured_again, kLowered + TrackerSettings{}.new_mouth_look_after);
   EXPECT_EQ(std::count(tracked.begin() + measured_again, tracked.end(), false), 0);
+}
+
+// A hand whose lower face reads a little above TrackerSettings::min_mouth_appearance (GRID
+// lgaf4n from frame 20, the face's forehead and fringe before its mouth: 0.31-0.32) but whose
+// "lips" are much darker than the mouth's is dropped by the lips' luma check. The face is found
+// again in its place in the next frame and keeps the lips' luma of its track, so that every
+// frame of the hand is dropped; it took the hand's until 12-06, fifth session, and 19 of the 20
+// frames were measured as lips. The first frame after the hand is measured.
+TEST(FaceTracker, AFaceFoundAgainInPlaceKeepsItsLipsLuma) {
+  const std::vector<cv::Mat> frames = grid_frames("lgaf4n");
+  if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  constexpr int kFrom = 20, kLength = 20;
+  const FaultClip clip = mouth_hidden_clip("hand", frames, clean_landmarks(frames), kFrom, kLength, hand_of);
+  FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
+  std::vector<int> measured;
+  for (std::size_t f = 0; f < clip.frames.size(); ++f) {
+    const bool tracked = processor.process(clip.frames[f], cv::Mat()).tracked;
+    if (f >= kFrom && f < kFrom + kLength && tracked) measured.push_back(static_cast<int>(f));
+    if (f < kFrom || f == kFrom + kLength) EXPECT_TRUE(tracked) << "frame " << f;
+  }
+  EXPECT_EQ(measured, std::vector<int>{}) << "frames of the hand measured";
+}
+
+// Lips whose luma stays changed (a light moved) are the lips once they have stayed so for
+// TrackerSettings::new_mouth_look_after frames in a row: the face, found again in place every
+// frame until then, is tracked from there on.
+TEST(FaceTracker, LipsThatStayChangedAreTheLipsAfterAWhile) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
+  const std::vector<cv::Mat> frames = read_gray_frames(kFixtureDir / "talking_face.avi");
+  const int wait = TrackerSettings{}.new_mouth_look_after;
+  ASSERT_GT(static_cast<int>(frames.size()), wait + 10);
+  FaceTracker tracker(test::shared_predictor());
+  Landmarks2D landmarks;
+  ASSERT_EQ(tracker.track(frames[0], landmarks), TrackStatus::kAcquired);
+  const double lips = measure_lip_gap(frames[0], cv::Mat(), landmarks).lip_luma;
+  ASSERT_TRUE(tracker.check_mouth(lips));
+  std::vector<int> accepted;
+  for (int f = 1; f < wait + 10; ++f) {
+    const TrackStatus status = tracker.track(frames[f], landmarks);
+    ASSERT_NE(status, TrackStatus::kNoFace) << "frame " << f;
+    if (tracker.check_mouth(2 * lips)) accepted.push_back(f);
+  }
+  ASSERT_FALSE(accepted.empty()) << "lips that stay changed are never taken";
+  EXPECT_EQ(accepted.front(), wait + 1) << "taken after " << wait << " frames unlike the track's";
+  EXPECT_EQ(static_cast<int>(accepted.size()), wait + 10 - accepted.front()) << "and every frame after";
 }
 
 // A face twice GRID's size, as a close camera sees it, sinks until the picture's edge runs
