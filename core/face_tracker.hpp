@@ -91,7 +91,7 @@ struct TrackerSettings {
   /// by this one (a copy of it: CascadeFaceDetector) for faces from half dlib's window wide;
   /// none: not searched further. A camera's frames never are (docs/method.md 1, "A face the
   /// HOG detector misses").
-  std::shared_ptr<const CascadeFaceDetector> still_cascade;
+  std::shared_ptr<const CascadeFaceDetector> still_cascade{};
 };
 
 enum class TrackStatus {
