@@ -30,9 +30,9 @@ cv::Mat covered_frame(const cv::Mat& gray, double fraction, double luma, std::ui
   return out;
 }
 
-cv::Mat held_before(const cv::Mat& gray, const cv::Rect& area, const cv::Mat& thing) {
-  cv::Mat out = gray.clone();
-  const cv::Rect covered = area & cv::Rect(0, 0, gray.cols, gray.rows);
+cv::Mat held_before(const cv::Mat& image, const cv::Rect& area, const cv::Mat& thing) {
+  cv::Mat out = image.clone();
+  const cv::Rect covered = area & cv::Rect(0, 0, image.cols, image.rows);
   if (covered.empty()) return out;
   cv::Mat scaled;
   cv::resize(thing, scaled, area.size(), 0, 0, cv::INTER_LINEAR);
@@ -48,10 +48,10 @@ cv::Rect before_the_mouth(const Landmarks2D& face) {
   return {cv::Point(low.x(), low.y()), cv::Point(high.x(), high.y())};
 }
 
-cv::Mat hand_of(const cv::Mat& gray, const Landmarks2D& face) {
+cv::Mat hand_of(const cv::Mat& image, const Landmarks2D& face) {
   const double iod = interocular_distance(face), brows = std::min(face(1, 19), face(1, 24));
   const cv::Rect forehead(cv::Point(face(0, 19), brows - 0.55 * iod), cv::Point(face(0, 24), brows - 0.15 * iod));
-  return gray(forehead & cv::Rect(0, 0, gray.cols, gray.rows)).clone();
+  return image(forehead & cv::Rect(0, 0, image.cols, image.rows)).clone();
 }
 
 }  // namespace lipdrive

@@ -21,9 +21,9 @@ cv::Mat shifted_frame(const cv::Mat& gray, double dx, double dy, int fill = -1);
 /// rising in front of the lens: blurred noise around `luma`, the same for a given `seed`.
 cv::Mat covered_frame(const cv::Mat& gray, double fraction, double luma = 30, std::uint64_t seed = 1);
 
-/// `gray` with `thing` (a card, a hand: any picture of the same type) held in front of `area`,
-/// scaled to cover it.
-cv::Mat held_before(const cv::Mat& gray, const cv::Rect& area, const cv::Mat& thing);
+/// `image` (grey or colour) with `thing` (a card, a hand: any picture of the same type) held in
+/// front of `area`, scaled to cover it.
+cv::Mat held_before(const cv::Mat& image, const cv::Rect& area, const cv::Mat& thing);
 
 /// Where a thing held before the mouth of `face` covers: the box of its 20 mouth landmarks
 /// grown by 0.3 inter-ocular distances on every side.
@@ -31,7 +31,7 @@ cv::Rect before_the_mouth(const Landmarks2D& face);
 
 /// A hand, for held_before: the face's own forehead above its brows (between the brows'
 /// middles, from 0.15 to 0.55 inter-ocular distances above them, as far as the picture holds
-/// it): skin of the performer's own tone, texture and light.
-cv::Mat hand_of(const cv::Mat& gray, const Landmarks2D& face);
+/// it) in `image` (grey or colour): skin of the performer's own tone, texture and light.
+cv::Mat hand_of(const cv::Mat& image, const Landmarks2D& face);
 
 }  // namespace lipdrive
