@@ -205,8 +205,9 @@ void FaceTracker::look_at_mouth(const cv::Mat& gray, const Landmarks2D& landmark
   // No look of the lower face yet (out of the picture, or flat, at acquisition): take it now.
   if (!mouth_look_.captured()) mouth_look_.capture(gray, landmarks);
   const FaceAppearance::Match match = mouth_look_.compare(gray, landmarks);
-  // A lower face the picture's edge cuts (a chin off a close camera's picture) is not judged.
-  const bool hidden = mouth_look_.captured() && match.in_picture && match.similarity < settings_.min_mouth_appearance;
+  // A lower face the picture's edge cuts (a chin off a close camera's picture) is not judged, nor
+  // one without a look (compare() then finds it in no picture).
+  const bool hidden = match.in_picture && match.similarity < settings_.min_mouth_appearance;
   hidden_frames_ = hidden ? hidden_frames_ + 1 : 0;
   // A lower face much like the look becomes the look: it follows speech and what changes slowly,
   // not what appears at once. Over a new face's first frames every frame does: a face is often

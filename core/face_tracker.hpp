@@ -121,8 +121,8 @@ inline constexpr double kMouthMovedBeyondTheEdge = 0.1;
 /// How far the inner lips may cross, in inter-ocular distances along the face's vertical: the
 /// upper inner lip (61-63) below the lower one (67-65). The landmarks of real mouths cross by
 /// their noise at most (0.012 over the 58 LFPW photographs, never over the 3,888 tracked frames
-/// of the GRID clips); over a flat card held in front of the mouth the predictor turns the mouth over,
-/// 0.08-0.18 (docs/method.md 1, "Something over the mouth").
+/// of the GRID clips); over a flat card held in front of the mouth the predictor turns the
+/// mouth over, 0.08-0.18 (docs/method.md 1, "Something over the mouth").
 inline constexpr double kLipsCrossed = 0.04;
 /// How far a face may roll in the picture (radians either way) for the shape predictor to
 /// find its landmarks from an upright box, as dlib's detector gives and its training used: at

@@ -1,8 +1,8 @@
 // Frames in which the tracked face stops being where the tracker last saw it, made from a
 // clean clip (DESIGN.md 6): a cut to another shot with the face elsewhere, the face leaving
-// the frame, a hand over the lens, a card or a hand before the mouth. The face's true landmarks follow from the clean
-// clip's (shifted by the same offset), so a test can tell a frame tracked on the face from one tracked on whatever
-// replaced it.
+// the frame, a hand over the lens, a card or a hand before the mouth. The face's true
+// landmarks follow from the clean clip's (shifted by the same offset), so a test can tell a
+// frame tracked on the face from one tracked on whatever replaced it.
 #pragma once
 
 #include "core/landmarks.hpp"
