@@ -69,10 +69,18 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
   // below the eyes (about 1.3 for an adult, more with the mouth wide open).
   if (!(0 < depth(ibug::kNoseTip) && depth(ibug::kNoseTip) < mouth && mouth < depth(ibug::kChin))) return false;
   if (depth(ibug::kChin) < 0.7 || depth(ibug::kChin) > 2.2) return false;
-  // The upper lip above the lower, column by column (61 over 67, 62 over 66, 63 over 65).
-  for (int k = -1; k <= 1; ++k)
-    if (depth(ibug::kInnerLipBottom - k) - depth(ibug::kInnerLipTop + k) < -kLipsCrossed) return false;
   return lateral(ibug::kMouthCornerRight) < lateral(ibug::kMouthCornerLeft);
+}
+
+bool lips_crossed(const Landmarks2D& landmarks) {
+  const double iod = interocular_distance(landmarks);
+  const Eigen::Vector2d across = (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)) / iod;
+  const Eigen::Vector2d down(-across.y(), across.x());
+  for (int k = -1; k <= 1; ++k)
+    if ((landmarks.col(ibug::kInnerLipBottom - k) - landmarks.col(ibug::kInnerLipTop + k)).dot(down) <
+        -kLipsCrossed * iod)
+      return true;
+  return false;
 }
 
 FaceTracker::FaceTracker(std::shared_ptr<const ShapePredictorData> predictor, TrackerSettings settings)
@@ -135,7 +143,7 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
       last = next;
       predictor_.predict_median(gray, next, landmarks);
     }
-    if (!looks_like_a_face(gray, last, landmarks)) continue;
+    if (!looks_like_a_face(gray, last, landmarks) || lips_crossed(landmarks)) continue;
     if (source == BoxSource::kCascade && !still_cascade_->sees_an_eye(gray, landmarks)) continue;
     const std::pair rank(!jaw_off_picture(landmarks, gray.cols, gray.rows), interocular_distance(landmarks));
     if (!best || rank > best->rank) best = Candidate{box, landmarks, rank};

@@ -22,6 +22,7 @@
 #include "firmware_app/tables/grid_align.hpp"
 #include "fixture_paths.hpp"
 #include "shared_predictor.hpp"
+#include "sim/steady_take.hpp"
 
 #include <dlib/image_processing/frontal_face_detector.h>
 #include <dlib/opencv/cv_image.h>
@@ -355,7 +356,9 @@ TEST(LipClosureEvaluation, LfpwPhotographs) {
     ::testing::Test::RecordProperty(fmt::format("lfpw_{}", name), line);
   }
   const PhotoFigures all = photo_figures(cropped);
-  if (stills.still_cascade) EXPECT_EQ(all.tracked, all.photos) << "the issue: every frontal face tracked";
+  if (stills.still_cascade) {
+    EXPECT_EQ(all.tracked, all.photos) << "the issue: every frontal face tracked";
+  }
   EXPECT_LE(all.point_error, 0.030);
   EXPECT_LE(all.open_mae, 0.04);  // the issue's bound (0.0451 before acquisition took the median of seven starts)
   EXPECT_LE(all.open_mae, all.landmark_mae) << "open is further from the annotation than the landmark height";
@@ -364,6 +367,71 @@ TEST(LipClosureEvaluation, LfpwPhotographs) {
   ASSERT_FALSE(seal.empty());
   EXPECT_GT(median(seal), 0.5);
   EXPECT_LT(median(open), 0.01);
+}
+
+// ---------------------------------------------------------------------------------------------
+// LFPW faces as steady takes
+
+// Each photograph's face as a 3 s take from a head-mounted camera (sim/steady_take: swaying a
+// little, the light breathing, sensor noise), tracked from frame to frame as the daemon tracks.
+// The tracker's checks were set on one GRID speaker and the generated face; here they meet 58
+// faces (beards, glasses, make-up, skin tones, hands at the face). No tracked frame may be a
+// false track: landmarks more than 0.1 inter-ocular distances from the face's own, as in the
+// fault clips of test_face_tracker (here the landmarks of the photograph itself, carried into
+// the frame). The frames lost, and the error against the annotation, are reported.
+TEST(LipClosureEvaluation, LfpwFacesAsSteadyTakes) {
+  const std::vector<fs::path> photos = files_with_extension(test::shared_fixtures() / "lfpw_train", ".png");
+  if (photos.empty()) GTEST_SKIP() << "no LFPW photographs in " << test::shared_fixtures();
+  constexpr int kFrames = 75;
+  FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
+  int frames = 0, tracked = 0, off_the_face = 0, whole_takes = 0;
+  double error_sum = 0;
+  std::string losing;
+  for (const fs::path& photo : photos) {
+    const Landmarks2D truth = read_pts(fs::path(photo).replace_extension(".pts"));
+    cv::Mat gray, cr;
+    read_image(photo, gray, cr);
+    const SteadyTake take = steady_take(gray, truth, kFrames);
+    processor.forget(FaceTracker::Next::kStill);
+    const FrameMeasurement& still = processor.process(gray, cv::Mat());
+    const Landmarks2D own = still.tracked ? still.landmarks : truth;
+    processor.forget(FaceTracker::Next::kVideo);
+    int first = -1, lost = 0;
+    for (int f = 0; f < kFrames; ++f) {
+      const FrameMeasurement& m = processor.process(take.frames[static_cast<std::size_t>(f)], cv::Mat());
+      ++frames;
+      if (!m.tracked) {
+        lost += first >= 0;
+        continue;
+      }
+      if (first < 0) first = f;
+      ++tracked;
+      const cv::Matx23d& where = take.where[static_cast<std::size_t>(f)];
+      const Eigen::Matrix<double, 2, 3> to_frame{{where(0, 0), where(0, 1), where(0, 2)},
+                                                 {where(1, 0), where(1, 1), where(1, 2)}};
+      const auto in_frame = [&](const Landmarks2D& p) -> Landmarks2D {
+        return to_frame.leftCols<2>() * p + to_frame.col(2).replicate(1, kNumLandmarks);
+      };
+      const auto error = [&](const Landmarks2D& face) {
+        return (m.landmarks - face).colwise().norm().mean() / interocular_distance(face);
+      };
+      error_sum += error(in_frame(truth));
+      off_the_face += error(in_frame(own)) > 0.1;
+    }
+    if (first == 0 && lost == 0)
+      ++whole_takes;
+    else
+      losing += first < 0 ? fmt::format(" {} (never)", photo.stem().string())
+                          : fmt::format(" {} (from frame {}, {} lost after)", photo.stem().string(), first, lost);
+  }
+  const std::string line = fmt::format(
+      "{} takes of {} frames: {} tracked on every frame; {}/{} frames tracked, mean point error {:.4f} (of the "
+      "annotation), {} false tracks; the others:{}",
+      photos.size(), kFrames, whole_takes, tracked, frames, error_sum / std::max(tracked, 1), off_the_face,
+      losing.empty() ? " none" : losing);
+  fmt::print("LFPW steady takes: {}\n", line);
+  ::testing::Test::RecordProperty("lfpw_steady_takes", line);
+  EXPECT_EQ(off_the_face, 0) << "false tracks";
 }
 
 }  // namespace
