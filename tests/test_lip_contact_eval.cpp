@@ -375,17 +375,26 @@ TEST(LipClosureEvaluation, LfpwPhotographs) {
 // Each photograph's face as a 3 s take from a head-mounted camera (sim/steady_take: swaying a
 // little, the light breathing, sensor noise), tracked from frame to frame as the daemon tracks.
 // The tracker's checks were set on one GRID speaker and the generated face; here they meet 58
-// faces (beards, glasses, make-up, skin tones, hands at the face). No tracked frame may be a
-// false track: landmarks more than 0.1 inter-ocular distances from the face's own, as in the
-// fault clips of test_face_tracker (here the landmarks of the photograph itself, carried into
-// the frame). The frames lost, and the error against the annotation, are reported.
+// faces (beards, glasses, make-up, skin tones, hands at the face). No tracked frame may be off
+// the face. The frames lost, and the error against the annotation, are reported.
+//
+// Off the face: in the fault clips of test_face_tracker, more than 0.1 inter-ocular distances
+// from the same face's landmarks in the clean clip, tracked by the same build. Here the face's
+// own landmarks are the photograph's, carried into the frame: at another size, without the
+// take's noise, so they carry the predictor's own wobble on a hard face (image_0072, behind
+// thick-rimmed glasses: 0.107 from them in two frames of the clang ASan build, the annotation
+// 0.093 and 0.088 away; docs/method.md 1, "Lips crossed under a moustache"). The one false
+// acquisition seen in these takes read 0.26 (image_0406 at 150 px). So the bound here is twice
+// the fault clips'; the frames beyond theirs, and the largest distance, are reported.
+constexpr double kOffTheFace = 0.2;
+
 TEST(LipClosureEvaluation, LfpwFacesAsSteadyTakes) {
   const std::vector<fs::path> photos = files_with_extension(test::shared_fixtures() / "lfpw_train", ".png");
   if (photos.empty()) GTEST_SKIP() << "no LFPW photographs in " << test::shared_fixtures();
   constexpr int kFrames = 75;
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
-  int frames = 0, tracked = 0, off_the_face = 0, whole_takes = 0;
-  double error_sum = 0;
+  int frames = 0, tracked = 0, off_the_face = 0, beyond_fault_bound = 0, whole_takes = 0;
+  double error_sum = 0, farthest = 0;
   std::string losing;
   for (const fs::path& photo : photos) {
     const Landmarks2D truth = read_pts(fs::path(photo).replace_extension(".pts"));
@@ -416,7 +425,10 @@ TEST(LipClosureEvaluation, LfpwFacesAsSteadyTakes) {
         return (m.landmarks - face).colwise().norm().mean() / interocular_distance(face);
       };
       error_sum += error(in_frame(truth));
-      off_the_face += error(in_frame(own)) > 0.1;
+      const double from_own = error(in_frame(own));
+      farthest = std::max(farthest, from_own);
+      beyond_fault_bound += from_own > 0.1;
+      off_the_face += from_own > kOffTheFace;
     }
     if (first == 0 && lost == 0)
       ++whole_takes;
@@ -426,12 +438,13 @@ TEST(LipClosureEvaluation, LfpwFacesAsSteadyTakes) {
   }
   const std::string line = fmt::format(
       "{} takes of {} frames: {} tracked on every frame; {}/{} frames tracked, mean point error {:.4f} (of the "
-      "annotation), {} false tracks; the others:{}",
-      photos.size(), kFrames, whole_takes, tracked, frames, error_sum / std::max(tracked, 1), off_the_face,
-      losing.empty() ? " none" : losing);
+      "annotation); from the photograph's own landmarks at most {:.3f}, {} frames beyond 0.1, {} off the face "
+      "(beyond {}); the others:{}",
+      photos.size(), kFrames, whole_takes, tracked, frames, error_sum / std::max(tracked, 1), farthest,
+      beyond_fault_bound, off_the_face, kOffTheFace, losing.empty() ? " none" : losing);
   fmt::print("LFPW steady takes: {}\n", line);
   ::testing::Test::RecordProperty("lfpw_steady_takes", line);
-  EXPECT_EQ(off_the_face, 0) << "false tracks";
+  EXPECT_EQ(off_the_face, 0) << "frames tracked off the face";
 }
 
 }  // namespace
