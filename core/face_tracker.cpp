@@ -33,6 +33,17 @@ Eigen::Vector2d eye_centre(const Landmarks2D& p) {
   return 0.5 * (p.col(ibug::kRightEyeOuter) + p.col(ibug::kLeftEyeOuter));
 }
 
+/// The face's own axes, so that a tilted head is judged in its own frame: `across` points from
+/// the right outer eye corner to the left one (image right for a frontal face), `down` is
+/// perpendicular to it (image y grows downwards); both of unit length.
+struct FaceAxes {
+  Eigen::Vector2d across, down;
+};
+FaceAxes face_axes(const Landmarks2D& p) {
+  const Eigen::Vector2d across = (p.col(ibug::kLeftEyeOuter) - p.col(ibug::kRightEyeOuter)) / interocular_distance(p);
+  return {across, Eigen::Vector2d(-across.y(), across.x())};
+}
+
 }  // namespace
 
 bool jaw_off_picture(const Landmarks2D& landmarks, int image_width, int image_height, double within) {
@@ -56,12 +67,9 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
   for (int i = ibug::kMouthCornerRight; jaw_cut && i < kNumLandmarks; ++i)
     if (inside(landmarks, i, image_width, image_height) < kMouthInCutPicture * iod) return false;
 
-  // Face axes from the eyes, so a tilted head is judged in its own frame: "across" points
-  // from the right eye to the left eye (image right for a frontal face), "down" is
-  // perpendicular to it (image y grows downwards).
-  const Eigen::Vector2d eye_mid = 0.5 * (landmarks.col(ibug::kLeftEyeOuter) + landmarks.col(ibug::kRightEyeOuter));
-  const Eigen::Vector2d across = (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)) / iod;
-  const Eigen::Vector2d down(-across.y(), across.x());
+  // Depth below the eye line and place across the face, in inter-ocular distances.
+  const Eigen::Vector2d eye_mid = eye_centre(landmarks);
+  const auto [across, down] = face_axes(landmarks);
   const auto depth = [&](int i) { return (landmarks.col(i) - eye_mid).dot(down) / iod; };
   const auto lateral = [&](int i) { return (landmarks.col(i) - eye_mid).dot(across) / iod; };
   const double mouth = 0.5 * (depth(ibug::kOuterLipTop) + depth(ibug::kOuterLipBottom));
@@ -73,9 +81,8 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
 }
 
 bool lips_crossed(const Landmarks2D& landmarks) {
+  const Eigen::Vector2d down = face_axes(landmarks).down;
   const double iod = interocular_distance(landmarks);
-  const Eigen::Vector2d across = (landmarks.col(ibug::kLeftEyeOuter) - landmarks.col(ibug::kRightEyeOuter)) / iod;
-  const Eigen::Vector2d down(-across.y(), across.x());
   for (int k = -1; k <= 1; ++k)
     if ((landmarks.col(ibug::kInnerLipBottom - k) - landmarks.col(ibug::kInnerLipTop + k)).dot(down) <
         -kLipsCrossed * iod)

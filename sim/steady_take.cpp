@@ -30,7 +30,7 @@ SteadyTake steady_take(const cv::Mat& photo, const Landmarks2D& face, int frames
     frame += noise;
     frame.convertTo(frame, photo.type());
     take.frames.push_back(frame);
-    take.where.emplace_back(m);
+    take.where.push_back(Eigen::Map<const Eigen::Matrix<double, 2, 3, Eigen::RowMajor>>(m.ptr<double>()));
   }
   return take;
 }

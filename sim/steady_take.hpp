@@ -6,17 +6,23 @@
 
 #include "core/landmarks.hpp"
 
+#include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
-#include <opencv2/core/matx.hpp>
 
+#include <cstddef>
 #include <vector>
 
 namespace lipdrive {
 
 struct SteadyTake {
   std::vector<cv::Mat> frames;
-  /// Frame f's pixel coordinates of a point of the photograph: where[f] * (x, y, 1).
-  std::vector<cv::Matx23d> where;
+  /// Where frame f shows a point p of the photograph: where[f] * (p, 1).
+  std::vector<Eigen::Matrix<double, 2, 3>> where;
+
+  /// Landmarks of the photograph, as frame f shows them.
+  Landmarks2D in_frame(std::size_t f, const Landmarks2D& p) const {
+    return where[f].leftCols<2>() * p + where[f].col(2).replicate(1, kNumLandmarks);
+  }
 };
 
 /// `frames` frames of `photo` (grey or colour) around `face` (its landmarks in the photograph),

@@ -415,17 +415,12 @@ TEST(LipClosureEvaluation, LfpwFacesAsSteadyTakes) {
       }
       if (first < 0) first = f;
       ++tracked;
-      const cv::Matx23d& where = take.where[static_cast<std::size_t>(f)];
-      const Eigen::Matrix<double, 2, 3> to_frame{{where(0, 0), where(0, 1), where(0, 2)},
-                                                 {where(1, 0), where(1, 1), where(1, 2)}};
-      const auto in_frame = [&](const Landmarks2D& p) -> Landmarks2D {
-        return to_frame.leftCols<2>() * p + to_frame.col(2).replicate(1, kNumLandmarks);
-      };
-      const auto error = [&](const Landmarks2D& face) {
+      const auto error = [&](const Landmarks2D& photographed) {
+        const Landmarks2D face = take.in_frame(static_cast<std::size_t>(f), photographed);
         return (m.landmarks - face).colwise().norm().mean() / interocular_distance(face);
       };
-      error_sum += error(in_frame(truth));
-      const double from_own = error(in_frame(own));
+      error_sum += error(truth);
+      const double from_own = error(own);
       farthest = std::max(farthest, from_own);
       beyond_fault_bound += from_own > 0.1;
       off_the_face += from_own > kOffTheFace;
