@@ -69,9 +69,9 @@ bool plausible_face(const Landmarks2D& landmarks, int image_width, int image_hei
 
   // Depth below the eye line and place across the face, in inter-ocular distances.
   const Eigen::Vector2d eye_mid = eye_centre(landmarks);
-  const auto [across, down] = face_axes(landmarks);
-  const auto depth = [&](int i) { return (landmarks.col(i) - eye_mid).dot(down) / iod; };
-  const auto lateral = [&](int i) { return (landmarks.col(i) - eye_mid).dot(across) / iod; };
+  const FaceAxes axes = face_axes(landmarks);
+  const auto depth = [&](int i) { return (landmarks.col(i) - eye_mid).dot(axes.down) / iod; };
+  const auto lateral = [&](int i) { return (landmarks.col(i) - eye_mid).dot(axes.across) / iod; };
   const double mouth = 0.5 * (depth(ibug::kOuterLipTop) + depth(ibug::kOuterLipBottom));
   // Eye line, nose tip, mouth, chin in this order; chin 0.7..2.2 inter-ocular distances
   // below the eyes (about 1.3 for an adult, more with the mouth wide open).
