@@ -138,12 +138,15 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
     // A head rolled further than the predictor turns a face from the detector's box, and the
     // cascade's box is only roughly where dlib's detector would put it (in a face half in
     // shadow the landmarks of the dark half crowd in from it): again, from the box the
-    // landmarks give, until it settles.
+    // landmarks give, until it settles. So in a camera's frames, where the next frame starts
+    // from that box anyway: from a box found on a reduced frame (min_face_px) or around
+    // glasses the seven starts can stretch the face down to its chin, or cross its lips.
+    // A still keeps what the detector's box gives: it has no next frame.
     FaceBox last = box;
     for (int pass = 0; pass < kSettlePasses; ++pass) {
       const FaceBox next = predictor_.data()->box_for(landmarks, kUprightRoll);
       const bool moved =
-          source == BoxSource::kCascade &&
+          (source == BoxSource::kCascade || !still_) &&
           std::abs(next.width() - last.width()) + std::abs(next.left - last.left) + std::abs(next.top - last.top) >
               kBoxSettled * static_cast<double>(last.width());
       if (std::abs(next.roll - last.roll) < kTurnSettled && !moved) break;
