@@ -141,7 +141,8 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
     // landmarks give, until it settles. So in a camera's frames, where the next frame starts
     // from that box anyway: from a box found on a reduced frame (min_face_px) or around
     // glasses the seven starts can stretch the face down to its chin, or cross its lips.
-    // A still keeps what the detector's box gives: it has no next frame.
+    // A still keeps the detector's box: settled, one LFPW still went to another face of its
+    // photograph (docs/method.md 1, "Close to the camera").
     FaceBox last = box;
     for (int pass = 0; pass < kSettlePasses; ++pass) {
       const FaceBox next = predictor_.data()->box_for(landmarks, kUprightRoll);
