@@ -395,8 +395,8 @@ void expect_steady_takes_on_the_face(double interocular_px, TrackerSettings trac
   const std::vector<fs::path> photos = files_with_extension(test::shared_fixtures() / "lfpw_train", ".png");
   if (photos.empty()) GTEST_SKIP() << "no LFPW photographs in " << test::shared_fixtures();
   constexpr int kFrames = 75;
-  FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor(),
-                           Eigen::VectorXf(), FitOutput::Expressions::Zero(), AutoIdentity{}, tracking);
+  FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor(), Eigen::VectorXf(),
+                           FitOutput::Expressions::Zero(), AutoIdentity{}, tracking);
   int frames = 0, tracked = 0, off_the_face = 0, beyond_fault_bound = 0, whole_takes = 0;
   double error_sum = 0, farthest = 0;
   std::string losing;
@@ -439,8 +439,8 @@ void expect_steady_takes_on_the_face(double interocular_px, TrackerSettings trac
       "{} takes of {} frames, {} px between the eyes: {} tracked on every frame; {}/{} frames tracked, mean point "
       "error {:.4f} (of the annotation); from the photograph's own landmarks at most {:.3f}, {} frames beyond 0.1, {} "
       "off the face (beyond {}); the others:{}",
-      photos.size(), kFrames, interocular_px, whole_takes, tracked, frames, error_sum / std::max(tracked, 1),
-      farthest, beyond_fault_bound, off_the_face, kOffTheFace, losing.empty() ? " none" : losing);
+      photos.size(), kFrames, interocular_px, whole_takes, tracked, frames, error_sum / std::max(tracked, 1), farthest,
+      beyond_fault_bound, off_the_face, kOffTheFace, losing.empty() ? " none" : losing);
   fmt::print("LFPW steady takes: {}\n", line);
   ::testing::Test::RecordProperty(property, line);
   EXPECT_EQ(off_the_face, 0) << "frames tracked off the face";
