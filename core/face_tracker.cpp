@@ -130,26 +130,26 @@ bool FaceTracker::acquire_among(const std::vector<FaceBox>& faces, double scale,
     Landmarks2D landmarks;
     std::pair<bool, double> rank;  // whole, size
   };
+  // A head rolled further than the predictor turns a face from the detector's box: the
+  // landmarks are predicted again from the box they give, until its turn settles. Where the box
+  // is only roughly placed, until its place settles too: the cascade's (in a face half in
+  // shadow the landmarks of the dark half crowd in from it), and any in a camera's frames,
+  // whose next frame starts from the landmarks' box anyway (from a box found on a frame reduced
+  // by min_face_px, or around glasses, the seven starts can stretch a face to its chin or cross
+  // its lips). A still keeps the detector's place: settled, one LFPW still went to another face
+  // of its photograph (docs/method.md 1, "Close to the camera").
+  const bool settle_place = source == BoxSource::kCascade || !still_;
   std::optional<Candidate> best;
   for (const FaceBox& face : faces) {
     const FaceBox box = {std::lround(face.left / scale), std::lround(face.top / scale), std::lround(face.right / scale),
                          std::lround(face.bottom / scale), face.roll};
     predictor_.predict_median(gray, box, landmarks);  // a detector's box is only roughly placed
-    // A head rolled further than the predictor turns a face from the detector's box, and the
-    // cascade's box is only roughly where dlib's detector would put it (in a face half in
-    // shadow the landmarks of the dark half crowd in from it): again, from the box the
-    // landmarks give, until it settles. So in a camera's frames, where the next frame starts
-    // from that box anyway: from a box found on a reduced frame (min_face_px) or around
-    // glasses the seven starts can stretch the face down to its chin, or cross its lips.
-    // A still keeps the detector's box: settled, one LFPW still went to another face of its
-    // photograph (docs/method.md 1, "Close to the camera").
     FaceBox last = box;
     for (int pass = 0; pass < kSettlePasses; ++pass) {
       const FaceBox next = predictor_.data()->box_for(landmarks, kUprightRoll);
-      const bool moved =
-          (source == BoxSource::kCascade || !still_) &&
-          std::abs(next.width() - last.width()) + std::abs(next.left - last.left) + std::abs(next.top - last.top) >
-              kBoxSettled * static_cast<double>(last.width());
+      const auto shift =
+          std::abs(next.width() - last.width()) + std::abs(next.left - last.left) + std::abs(next.top - last.top);
+      const bool moved = settle_place && shift > kBoxSettled * static_cast<double>(last.width());
       if (std::abs(next.roll - last.roll) < kTurnSettled && !moved) break;
       last = next;
       predictor_.predict_median(gray, next, landmarks);
