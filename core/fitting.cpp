@@ -19,16 +19,46 @@ namespace {
 
 using namespace fit_detail;
 
+/// The Cholesky factor L of a symmetric positive definite matrix, A = L L^T, in place: L in the
+/// lower triangle, zeros above it; only A's lower triangle is read. Right-looking and blocked
+/// (Golub & Van Loan, Matrix Computations, 4th ed., 4.2.9): each panel of 4 columns is
+/// factored, then subtracted from the columns after it, whole columns at a time so that every
+/// loop has a size the compiler knows. Eigen's LLT cuts a 40 x 40 matrix into blocks of
+/// run-time size and takes twice as long (docs/performance.md, "The shape fit's Cholesky").
+template <int K>
+void cholesky_in_place(Mat<K, K>& a) {
+  constexpr int kPanel = 4;
+  static_assert(K % kPanel == 0);
+  for (int first = 0; first < K; first += kPanel) {
+    for (int k = first; k < first + kPanel; ++k) {
+      a.col(k).head(k).setZero();
+      a.col(k) *= 1.0 / std::sqrt(a(k, k));
+      for (int j = k + 1; j < first + kPanel; ++j) a.col(j) -= a(j, k) * a.col(k);
+    }
+    const Mat<K, kPanel> panel = a.template middleCols<kPanel>(first);
+    const Mat<kPanel, K> panel_rows = panel.transpose();
+    for (int j = first + kPanel; j < K; ++j) {
+      Mat<K, 1> column = a.col(j);
+      for (int t = 0; t < kPanel; ++t) column -= panel_rows(t, j) * panel.col(t);
+      a.col(j) = column;
+    }
+  }
+}
+
 /// Regularised linear shape fit (Huber et al., "A Multiresolution 3D Morphable Face Model and
 /// Fitting Framework", VISAPP 2016; eos fit_shape_to_landmarks_linear): minimises
 /// sum_i ||y_proj,i - y_2D,i||^2 / (2 sigma^2) + lambda ||alpha||^2 in closed form,
-/// (A^T Omega A + lambda I) alpha = -A^T Omega b with Omega = I / sigma^2, by Cholesky (LLT).
+/// (A^T Omega A + lambda I) alpha = -A^T Omega b with Omega = I / sigma^2, by Cholesky.
 template <int K>
 Mat<K, 1> solve_shape(const Mat<K, K>& AtA, const Mat<K, 1>& Atb, double sigma_px, double lambda) {
   const double omega = 1.0 / (sigma_px * sigma_px);
-  Mat<K, K> lhs = omega * AtA;
-  lhs.diagonal().array() += lambda;
-  return Eigen::LLT<Mat<K, K>>(lhs).solve(-omega * Atb);
+  Mat<K, K> factor = omega * AtA;
+  factor.diagonal().array() += lambda;
+  cholesky_in_place<K>(factor);
+  Mat<K, 1> alpha = -omega * Atb;
+  factor.template triangularView<Eigen::Lower>().solveInPlace(alpha);
+  factor.template triangularView<Eigen::Lower>().transpose().solveInPlace(alpha);
+  return alpha;
 }
 
 /// The camera's scale s (pixels per mm): the RMS norm of the rows of its 2x3 part.
