@@ -20,10 +20,10 @@ namespace {
 using namespace fit_detail;
 
 /// The Cholesky factor L of a symmetric positive definite matrix, A = L L^T, in place: L in the
-/// lower triangle, zeros above it; only A's lower triangle is read. Right-looking and blocked
-/// (Golub & Van Loan, Matrix Computations, 4th ed., 4.2.9): each panel of 4 columns is
-/// factored, then subtracted from the columns after it, whole columns at a time so that every
-/// loop has a size the compiler knows. Eigen's LLT cuts a 40 x 40 matrix into blocks of
+/// lower triangle, zeros above it; only A's lower triangle is read. The outer-product
+/// (right-looking) Cholesky in blocks (Golub & Van Loan, Matrix Computations, 4th ed., section
+/// 4.2): each panel of 4 columns is factored, then subtracted from the columns after it, whole
+/// columns at a time so that every loop has a size the compiler knows. Eigen's LLT cuts a 40 x 40 matrix into blocks of
 /// run-time size and takes twice as long (docs/performance.md, "The shape fit's Cholesky").
 template <int K>
 void cholesky_in_place(Mat<K, K>& a) {
