@@ -23,8 +23,9 @@ using namespace fit_detail;
 /// lower triangle, zeros above it; only A's lower triangle is read. The outer-product
 /// (right-looking) Cholesky in blocks (Golub & Van Loan, Matrix Computations, 4th ed., section
 /// 4.2): each panel of 4 columns is factored, then subtracted from the columns after it, whole
-/// columns at a time so that every loop has a size the compiler knows. Eigen's LLT cuts a 40 x 40 matrix into blocks of
-/// run-time size and takes twice as long (docs/performance.md, "The shape fit's Cholesky").
+/// columns at a time so that every loop has a size the compiler knows. Eigen's LLT cuts a
+/// 40 x 40 matrix into blocks of run-time size and takes twice as long (docs/performance.md,
+/// "The shape fit's Cholesky").
 template <int K>
 void cholesky_in_place(Mat<K, K>& a) {
   constexpr int kPanel = 4;
@@ -36,10 +37,9 @@ void cholesky_in_place(Mat<K, K>& a) {
       for (int j = k + 1; j < first + kPanel; ++j) a.col(j) -= a(j, k) * a.col(k);
     }
     const Mat<K, kPanel> panel = a.template middleCols<kPanel>(first);
-    const Mat<kPanel, K> panel_rows = panel.transpose();
     for (int j = first + kPanel; j < K; ++j) {
       Mat<K, 1> column = a.col(j);
-      for (int t = 0; t < kPanel; ++t) column -= panel_rows(t, j) * panel.col(t);
+      for (int t = 0; t < kPanel; ++t) column -= panel(j, t) * panel.col(t);
       a.col(j) = column;
     }
   }
