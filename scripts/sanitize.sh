@@ -23,12 +23,12 @@ threaded=(test_pipeline test_modbus test_serial test_gpio test_osc test_dmx test
 # The tests with real-time bounds (ALSA capture's 25 ms; the pipeline's stop within a second;
 # the daemon's reload, kill -9 and restart, outputs, soak, face faults, DMX, OSC, timecode,
 # its calibration run on a GRID clip; the Modbus client's 5 ms publish bound; the monitor's
-# daemon above 30 frames/s): ASan's slower code makes them miss their watchdog, rate and
-# row-count checks without any sanitizer report (docs/reliability.md): in the asan lane their
-# verdict is their reports alone (run_tests).
+# daemon above 30 frames/s; the take's rows behind a hand while the voice drives): ASan's
+# slower code makes them miss their watchdog, rate and row-count checks without any sanitizer
+# report (docs/reliability.md): in the asan lane their verdict is their reports alone (run_tests).
 realtime=(test_audio_input test_pipeline test_reload test_crash_restart test_daemon_outputs test_soak
   test_daemon_face_faults test_daemon_dmx test_daemon_osc test_daemon_timecode test_calibrate_grid test_modbus
-  test_monitor)
+  test_monitor test_daemon_voice)
 # What the daemon tests run and read: the binaries, the default models and predictor, the clips.
 generated=(lipdrive lipdrive-dev default_models default_predictor fixtures)
 
