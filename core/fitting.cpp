@@ -12,6 +12,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lipdrive {
@@ -19,30 +20,91 @@ namespace {
 
 using namespace fit_detail;
 
+/// One panel of cholesky_in_place: columns First to First + 3 factored, then subtracted from the
+/// columns after them. Each column is touched from the multiple of 8 at or above the panel's first
+/// row down, a part whose length the compiler knows; the rows above the diagonal within it hold
+/// partial sums that nothing reads, zeroed once at the end.
+template <int K, int First>
+void factor_panel(Mat<K, K>& a) {
+  constexpr int kPanel = 4, kAlign = 8;
+  constexpr int top = First / kAlign * kAlign;
+  for (int k = First; k < First + kPanel; ++k) {
+    a.col(k).template segment<K - top>(top) *= 1.0 / std::sqrt(a(k, k));
+    for (int j = k + 1; j < First + kPanel; ++j)
+      a.col(j).template segment<K - top>(top) -= a(j, k) * a.col(k).template segment<K - top>(top);
+  }
+  if constexpr (First + kPanel < K) {
+    constexpr int below = (First + kPanel) / kAlign * kAlign;
+    const Mat<K - below, kPanel> panel = a.template block<K - below, kPanel>(below, First);
+    for (int j = First + kPanel; j < K; ++j) {
+      Mat<K - below, 1> column = a.col(j).template segment<K - below>(below);
+      for (int t = 0; t < kPanel; ++t) column -= panel(j - below, t) * panel.col(t);
+      a.col(j).template segment<K - below>(below) = column;
+    }
+  }
+}
+
+template <int K, std::size_t... Panel>
+void cholesky_in_place(Mat<K, K>& a, std::index_sequence<Panel...>) {
+  (factor_panel<K, 4 * static_cast<int>(Panel)>(a), ...);
+  a.template triangularView<Eigen::StrictlyUpper>().setZero();
+}
+
 /// The Cholesky factor L of a symmetric positive definite matrix, A = L L^T, in place: L in the
 /// lower triangle, zeros above it; only A's lower triangle is read. The outer-product
 /// (right-looking) Cholesky in blocks (Golub & Van Loan, Matrix Computations, 4th ed., section
-/// 4.2): each panel of 4 columns is factored, then subtracted from the columns after it, whole
-/// columns at a time so that every loop has a size the compiler knows. Eigen's LLT cuts a
-/// 40 x 40 matrix into blocks of run-time size and takes twice as long (docs/performance.md,
-/// "The shape fit's Cholesky").
+/// 4.2): each panel of 4 columns is factored, then subtracted from the columns after it, with
+/// loops whose sizes the compiler knows. Eigen's LLT cuts a 40 x 40 matrix into blocks of
+/// run-time size and takes twice as long (docs/performance.md, "The shape fit's Cholesky").
 template <int K>
 void cholesky_in_place(Mat<K, K>& a) {
-  constexpr int kPanel = 4;
-  static_assert(K % kPanel == 0);
-  for (int first = 0; first < K; first += kPanel) {
-    for (int k = first; k < first + kPanel; ++k) {
-      a.col(k).head(k).setZero();
-      a.col(k) *= 1.0 / std::sqrt(a(k, k));
-      for (int j = k + 1; j < first + kPanel; ++j) a.col(j) -= a(j, k) * a.col(k);
+  static_assert(K % 4 == 0);
+  cholesky_in_place<K>(a, std::make_index_sequence<K / 4>{});
+}
+
+/// Solves L z = b for z, L lower triangular with zeros above the diagonal (cholesky_in_place):
+/// forward substitution in blocks of 4 rows (Golub & Van Loan, Matrix Computations, 4th ed.,
+/// section 3.1, column-oriented, by blocks): each block by scalar substitution, then its 4 columns
+/// taken off the whole right-hand side in one product (the rows above it are no longer read). The
+/// diagonal's inverse comes first, so no division waits for the substitution before it. Eigen's
+/// triangular solves, which run its matrix-vector kernels at run-time sizes, made the fit at 40
+/// components 1.6-1.8 us slower (docs/performance.md, "The shape fit's substitutions").
+template <int K>
+Mat<K, 1> forward_substitution(const Mat<K, K>& lower, Mat<K, 1> b) {
+  constexpr int kBlock = 4;
+  static_assert(K % kBlock == 0);
+  const Mat<K, 1> inverse_diagonal = lower.diagonal().cwiseInverse();
+  Mat<K, 1> z;
+  for (int top = 0; top < K; top += kBlock) {
+    Mat<kBlock, 1> block = b.template segment<kBlock>(top);
+    for (int c = 0; c < kBlock; ++c) {
+      block[c] *= inverse_diagonal[top + c];
+      for (int r = c + 1; r < kBlock; ++r) block[r] -= lower(top + r, top + c) * block[c];
     }
-    const Mat<K, kPanel> panel = a.template middleCols<kPanel>(first);
-    for (int j = first + kPanel; j < K; ++j) {
-      Mat<K, 1> column = a.col(j);
-      for (int t = 0; t < kPanel; ++t) column -= panel(j, t) * panel.col(t);
-      a.col(j) = column;
+    z.template segment<kBlock>(top) = block;
+    b.noalias() -= lower.template middleCols<kBlock>(top) * block;
+  }
+  return z;
+}
+
+/// Solves L^T x = z for x, L as in forward_substitution: back substitution in blocks of 4 rows
+/// from the bottom (the same section): a block's right-hand side less what the rows solved below
+/// it contribute (4 dot products with L's columns, x zero where not yet solved), then the block by
+/// scalar substitution.
+template <int K>
+Mat<K, 1> back_substitution_transposed(const Mat<K, K>& lower, const Mat<K, 1>& z) {
+  constexpr int kBlock = 4;
+  static_assert(K % kBlock == 0);
+  const Mat<K, 1> inverse_diagonal = lower.diagonal().cwiseInverse();
+  Mat<K, 1> x = Mat<K, 1>::Zero();
+  for (int top = K - kBlock; top >= 0; top -= kBlock) {
+    Mat<kBlock, 1> block = z.template segment<kBlock>(top) - lower.template middleCols<kBlock>(top).transpose() * x;
+    for (int c = kBlock - 1; c >= 0; --c) {
+      x[top + c] = block[c] * inverse_diagonal[top + c];
+      for (int r = 0; r < c; ++r) block[r] -= lower(top + c, top + r) * x[top + c];
     }
   }
+  return x;
 }
 
 /// Regularised linear shape fit (Huber et al., "A Multiresolution 3D Morphable Face Model and
@@ -55,10 +117,7 @@ Mat<K, 1> solve_shape(const Mat<K, K>& AtA, const Mat<K, 1>& Atb, double sigma_p
   Mat<K, K> factor = omega * AtA;
   factor.diagonal().array() += lambda;
   cholesky_in_place<K>(factor);
-  Mat<K, 1> alpha = -omega * Atb;
-  factor.template triangularView<Eigen::Lower>().solveInPlace(alpha);
-  factor.template triangularView<Eigen::Lower>().transpose().solveInPlace(alpha);
-  return alpha;
+  return back_substitution_transposed<K>(factor, forward_substitution<K>(factor, -omega * Atb));
 }
 
 /// The camera's scale s (pixels per mm): the RMS norm of the rows of its 2x3 part.
