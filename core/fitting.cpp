@@ -140,10 +140,11 @@ template <int K>
 void solve_bounded(const Mat<K, K>& H, const Mat<K, 1>& g, const std::array<int, K>& partner, int sweeps,
                    Mat<K, 1>& w) {
   Mat<K, 1> gradient = H * w - g;  // of 1/2 w^T H w - g^T w
+  const Mat<K, 1> inverse_diagonal = H.diagonal().cwiseInverse();  // no division in the chain of steps
   for (int sweep = 0; sweep < sweeps; ++sweep)
     for (int e = 0; e < K; ++e) {
       const double upper = partner[e] < 0 ? 1.0 : 1.0 - w[partner[e]];
-      const double next = std::clamp(w[e] - gradient[e] / H(e, e), 0.0, std::max(upper, 0.0));
+      const double next = std::clamp(w[e] - gradient[e] * inverse_diagonal[e], 0.0, std::max(upper, 0.0));
       const double step = next - w[e];
       if (step == 0.0) continue;
       w[e] = next;
