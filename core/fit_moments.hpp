@@ -104,14 +104,17 @@ ShapeMoments shape_moments(const ModelMoments<K>& model, const ImageMoments<K>& 
   const Mat<3, 1> offset = model.basis_sum.transpose().lazyProduct(alpha) / L;  // mean of V̂_i alpha
   const Mat<9, 1> linear = model.basis_mean.transpose().lazyProduct(alpha);     // sum_i m'_i (V̂_i alpha)^T
   const Mat<6, 1> cross = image.basis_cross.transpose().lazyProduct(alpha);     // sum_i (V̂_i alpha) y'_i^T
-  // sum_i (V̂_i alpha)_a (V̂_i alpha)_b = alpha^T G_ab alpha, each as one pass over G_ab.
-  const Mat<K, K> outer = alpha.lazyProduct(alpha.transpose());
-  const auto form = [&](int block) { return model.gram[block].cwiseProduct(outer).sum(); };
+  // sum_i (V̂_i alpha)_a (V̂_i alpha)_b = alpha^T G_ab alpha: the six G_ab alpha in one pass over
+  // the columns (each column a multiple of alpha_j added), then six dot products.
+  Mat<K, 6> products = Mat<K, 6>::Zero();
+  for (int j = 0; j < K; ++j)
+    for (int block = 0; block < 6; ++block) products.col(block) += alpha[j] * model.gram[block].col(j);
+  const Mat<6, 1> forms = products.transpose().lazyProduct(alpha);
   Mat<3, 3> quadratic;
-  for (int a = 0; a < 3; ++a) quadratic(a, a) = form(a);
-  quadratic(0, 1) = quadratic(1, 0) = 0.5 * form(3);
-  quadratic(0, 2) = quadratic(2, 0) = 0.5 * form(4);
-  quadratic(1, 2) = quadratic(2, 1) = 0.5 * form(5);
+  for (int a = 0; a < 3; ++a) quadratic(a, a) = forms[a];
+  quadratic(0, 1) = quadratic(1, 0) = 0.5 * forms[3];
+  quadratic(0, 2) = quadratic(2, 0) = 0.5 * forms[4];
+  quadratic(1, 2) = quadratic(2, 1) = 0.5 * forms[5];
 
   const Eigen::Map<const Mat<3, 3>> linear_matrix(linear.data());
   ShapeMoments moments;
