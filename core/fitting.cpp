@@ -20,25 +20,29 @@ namespace {
 
 using namespace fit_detail;
 
-/// One panel of cholesky_in_place: columns First to First + 3 factored, then subtracted from the
-/// columns after them. Each column is touched from the multiple of 8 at or above the panel's first
-/// row down, a part whose length the compiler knows; the rows above the diagonal within it hold
-/// partial sums that nothing reads, zeroed once at the end.
+/// Columns per panel of cholesky_in_place, rows per block of its substitutions: 4 divides every
+/// compiled size (20, 40, 56).
+constexpr int kBlock = 4;
+
+/// One panel of cholesky_in_place: columns First to First + kBlock - 1 factored, then subtracted
+/// from the columns after them. Each column is touched from the multiple of 8 at or above the
+/// panel's first row down, a part whose length the compiler knows; the rows above the diagonal
+/// within it hold partial sums that nothing reads, zeroed once at the end.
 template <int K, int First>
 void factor_panel(Mat<K, K>& a) {
-  constexpr int kPanel = 4, kAlign = 8;
+  constexpr int kAlign = 8;
   constexpr int top = First / kAlign * kAlign;
-  for (int k = First; k < First + kPanel; ++k) {
+  for (int k = First; k < First + kBlock; ++k) {
     a.col(k).template segment<K - top>(top) *= 1.0 / std::sqrt(a(k, k));
-    for (int j = k + 1; j < First + kPanel; ++j)
+    for (int j = k + 1; j < First + kBlock; ++j)
       a.col(j).template segment<K - top>(top) -= a(j, k) * a.col(k).template segment<K - top>(top);
   }
-  if constexpr (First + kPanel < K) {
-    constexpr int below = (First + kPanel) / kAlign * kAlign;
-    const Mat<K - below, kPanel> panel = a.template block<K - below, kPanel>(below, First);
-    for (int j = First + kPanel; j < K; ++j) {
+  if constexpr (First + kBlock < K) {
+    constexpr int below = (First + kBlock) / kAlign * kAlign;
+    const Mat<K - below, kBlock> panel = a.template block<K - below, kBlock>(below, First);
+    for (int j = First + kBlock; j < K; ++j) {
       Mat<K - below, 1> column = a.col(j).template segment<K - below>(below);
-      for (int t = 0; t < kPanel; ++t) column -= panel(j - below, t) * panel.col(t);
+      for (int t = 0; t < kBlock; ++t) column -= panel(j - below, t) * panel.col(t);
       a.col(j).template segment<K - below>(below) = column;
     }
   }
@@ -46,7 +50,7 @@ void factor_panel(Mat<K, K>& a) {
 
 template <int K, std::size_t... Panel>
 void cholesky_in_place(Mat<K, K>& a, std::index_sequence<Panel...>) {
-  (factor_panel<K, 4 * static_cast<int>(Panel)>(a), ...);
+  (factor_panel<K, kBlock* static_cast<int>(Panel)>(a), ...);
   a.template triangularView<Eigen::StrictlyUpper>().setZero();
 }
 
@@ -58,8 +62,8 @@ void cholesky_in_place(Mat<K, K>& a, std::index_sequence<Panel...>) {
 /// run-time size and takes twice as long (docs/performance.md, "The shape fit's Cholesky").
 template <int K>
 void cholesky_in_place(Mat<K, K>& a) {
-  static_assert(K % 4 == 0);
-  cholesky_in_place<K>(a, std::make_index_sequence<K / 4>{});
+  static_assert(K % kBlock == 0);
+  cholesky_in_place<K>(a, std::make_index_sequence<K / kBlock>{});
 }
 
 /// Solves L z = b for z, L lower triangular with zeros above the diagonal (cholesky_in_place):
@@ -71,7 +75,6 @@ void cholesky_in_place(Mat<K, K>& a) {
 /// components 1.6-1.8 us slower (docs/performance.md, "The shape fit's substitutions").
 template <int K>
 Mat<K, 1> forward_substitution(const Mat<K, K>& lower, Mat<K, 1> b) {
-  constexpr int kBlock = 4;
   static_assert(K % kBlock == 0);
   const Mat<K, 1> inverse_diagonal = lower.diagonal().cwiseInverse();
   Mat<K, 1> z;
@@ -93,7 +96,6 @@ Mat<K, 1> forward_substitution(const Mat<K, K>& lower, Mat<K, 1> b) {
 /// scalar substitution.
 template <int K>
 Mat<K, 1> back_substitution_transposed(const Mat<K, K>& lower, const Mat<K, 1>& z) {
-  constexpr int kBlock = 4;
   static_assert(K % kBlock == 0);
   const Mat<K, 1> inverse_diagonal = lower.diagonal().cwiseInverse();
   Mat<K, 1> x = Mat<K, 1>::Zero();
