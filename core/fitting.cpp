@@ -50,7 +50,7 @@ void factor_panel(Mat<K, K>& a) {
 
 template <int K, std::size_t... Panel>
 void cholesky_in_place(Mat<K, K>& a, std::index_sequence<Panel...>) {
-  (factor_panel<K, kBlock* static_cast<int>(Panel)>(a), ...);
+  (factor_panel<K, static_cast<int>(Panel) * kBlock>(a), ...);
   a.template triangularView<Eigen::StrictlyUpper>().setZero();
 }
 
@@ -69,14 +69,14 @@ void cholesky_in_place(Mat<K, K>& a) {
 /// Solves L z = b for z, L lower triangular with zeros above the diagonal (cholesky_in_place):
 /// forward substitution in blocks of 4 rows (Golub & Van Loan, Matrix Computations, 4th ed.,
 /// section 3.1, column-oriented, by blocks): each block by scalar substitution, then its 4 columns
-/// taken off the whole right-hand side in one product (the rows above it are no longer read). The
-/// diagonal's inverse comes first, so no division waits for the substitution before it. Eigen's
-/// triangular solves, which run its matrix-vector kernels at run-time sizes, made the fit at 40
-/// components 1.6-1.8 us slower (docs/performance.md, "The shape fit's substitutions").
+/// taken off the whole right-hand side in one product (the rows above it are no longer read).
+/// `inverse_diagonal` holds 1 / L_kk, worked out once for both substitutions, so that no division
+/// waits for the substitution before it. Eigen's triangular solves, which run its matrix-vector
+/// kernels at run-time sizes, made the fit at 40 components 1.6-1.8 us slower
+/// (docs/performance.md, "The shape fit's substitutions").
 template <int K>
-Mat<K, 1> forward_substitution(const Mat<K, K>& lower, Mat<K, 1> b) {
+Mat<K, 1> forward_substitution(const Mat<K, K>& lower, const Mat<K, 1>& inverse_diagonal, Mat<K, 1> b) {
   static_assert(K % kBlock == 0);
-  const Mat<K, 1> inverse_diagonal = lower.diagonal().cwiseInverse();
   Mat<K, 1> z;
   for (int top = 0; top < K; top += kBlock) {
     Mat<kBlock, 1> block = b.template segment<kBlock>(top);
@@ -90,14 +90,13 @@ Mat<K, 1> forward_substitution(const Mat<K, K>& lower, Mat<K, 1> b) {
   return z;
 }
 
-/// Solves L^T x = z for x, L as in forward_substitution: back substitution in blocks of 4 rows
-/// from the bottom (the same section): a block's right-hand side less what the rows solved below
-/// it contribute (4 dot products with L's columns, x zero where not yet solved), then the block by
-/// scalar substitution.
+/// Solves L^T x = z for x, L and inverse_diagonal as in forward_substitution: back substitution
+/// in blocks of 4 rows from the bottom (the same section): a block's right-hand side less what
+/// the rows solved below it contribute (4 dot products with L's columns, x zero where not yet
+/// solved), then the block by scalar substitution.
 template <int K>
-Mat<K, 1> back_substitution_transposed(const Mat<K, K>& lower, const Mat<K, 1>& z) {
+Mat<K, 1> back_substitution_transposed(const Mat<K, K>& lower, const Mat<K, 1>& inverse_diagonal, const Mat<K, 1>& z) {
   static_assert(K % kBlock == 0);
-  const Mat<K, 1> inverse_diagonal = lower.diagonal().cwiseInverse();
   Mat<K, 1> x = Mat<K, 1>::Zero();
   for (int top = K - kBlock; top >= 0; top -= kBlock) {
     Mat<kBlock, 1> block = z.template segment<kBlock>(top) - lower.template middleCols<kBlock>(top).transpose() * x;
@@ -119,7 +118,9 @@ Mat<K, 1> solve_shape(const Mat<K, K>& AtA, const Mat<K, 1>& Atb, double sigma_p
   Mat<K, K> factor = omega * AtA;
   factor.diagonal().array() += lambda;
   cholesky_in_place<K>(factor);
-  return back_substitution_transposed<K>(factor, forward_substitution<K>(factor, -omega * Atb));
+  const Mat<K, 1> inverse_diagonal = factor.diagonal().cwiseInverse();
+  return back_substitution_transposed<K>(factor, inverse_diagonal,
+                                         forward_substitution<K>(factor, inverse_diagonal, -omega * Atb));
 }
 
 /// The camera's scale s (pixels per mm): the RMS norm of the rows of its 2x3 part.
