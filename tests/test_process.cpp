@@ -464,6 +464,8 @@ TEST_F(ProcessTest, FramesOfACameraOnItsSideAreTurnedUprightFirst) {
   const ProcessRun run = run_process(sideways.string() + " --out " + unturned.string(), dir_);
   EXPECT_EQ(run.exit_code, 65);
   EXPECT_NE(run.stderr_text.find("no face found in any of the 5 frames"), std::string::npos) << run.stderr_text;
+  EXPECT_NE(run.stderr_text.find("--rotate 90 or 270"), std::string::npos) << "the error names the remedy\n"
+                                                                           << run.stderr_text;
   const CsvTable want = read_csv_table(expected), have = read_csv_table(got);
   ASSERT_EQ(want.rows.size(), 5u);
   for (const double tracked : numeric_column(want, "tracked")) ASSERT_EQ(tracked, 1);

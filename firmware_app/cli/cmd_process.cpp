@@ -394,7 +394,11 @@ void run_process(const ProcessOptions& options) {
                        kExitDataError);
   if (rows == 0) throw CommandError(fmt::format("{}: no frames to process", input), kExitDataError);
   if (tracked_rows == 0)
-    throw CommandError(fmt::format("{}: no face found in any of the {} frames", input, rows), kExitDataError);
+    throw CommandError(fmt::format("{}: no face found in any of the {} frames{}", input, rows,
+                                   rotation == Rotation::k0
+                                       ? " (from a camera mounted on its side, turn them upright: --rotate 90 or 270)"
+                                       : ""),
+                       kExitDataError);
 }
 
 }  // namespace
