@@ -205,6 +205,32 @@ TEST(TakeSound, ABlockStampedAheadOfTheClockIsLeftOutNotFilledUpTo) {
     ASSERT_NEAR(back.samples[k], timeline_sample(static_cast<std::int64_t>(k)), 1e-4) << "sample " << k;
 }
 
+// The take's sound ends with its last row: the recorder writes it half a second behind the
+// clock, and when the take stops what was heard after the last row is cut. Sound written before
+// (a stretch of the take without rows) stays.
+TEST(TakeSound, EndsWithTheTakesLastRow) {
+  test::TempDir dir;
+  fake_now_ns = timeline_ns(10 * kBlock);  // 100 ms after the first block: every block is recent
+  TakeSound sound(kRate, [] { return fake_now_ns; });
+  sound.open(dir.path() / "cut.wav");
+  sound.start_at(timeline_ns(0));
+  for (int b = 0; b < 10; ++b) sound.push(timeline_block(b * kBlock));
+  sound.drain();  // all within the last half second: held
+  sound.close(timeline_ns(5 * kBlock + 40));
+  const DecodedAudio cut = decode_audio(dir.path() / "cut.wav", kRate);
+  ASSERT_EQ(cut.samples.size(), static_cast<std::size_t>(5 * kBlock + 40));
+  for (std::size_t k = 0; k < cut.samples.size(); ++k)
+    ASSERT_NEAR(cut.samples[k], timeline_sample(static_cast<std::int64_t>(k)), 1e-4) << "sample " << k;
+
+  fake_now_ns = timeline_ns(200 * kBlock);  // 2 s on: the same blocks are old enough to write
+  sound.open(dir.path() / "kept.wav");
+  sound.start_at(timeline_ns(0));
+  for (int b = 0; b < 10; ++b) sound.push(timeline_block(b * kBlock));
+  sound.drain();
+  sound.close(timeline_ns(3 * kBlock));
+  EXPECT_EQ(decode_audio(dir.path() / "kept.wav", kRate).samples.size(), static_cast<std::size_t>(10 * kBlock));
+}
+
 // Whether this process holds `file` open.
 bool open_here(const fs::path& file) {
   const fs::path target = fs::canonical(file);
@@ -270,7 +296,8 @@ TEST(TakeSound, TheDaemonsTakeCarriesItsSoundAndTrainsAVoice) {
     replay_start_ns = std::min(replay_start_ns, captured[r] - media[r] * 1e9);
   const DecodedAudio recorded = decode_audio(wav, kRate), original = decode_audio(clip, kRate);
   const double take_s = (captured.back() - captured.front()) * 1e-9;
-  EXPECT_NEAR(recorded.samples.size() / static_cast<double>(kRate), take_s, 0.1) << "sound as long as the rows";
+  EXPECT_NEAR(recorded.samples.size() / static_cast<double>(kRate), take_s, 0.02)
+      << "sound as long as the rows (two blocks)";
   const double first_row_media_s = (captured.front() - replay_start_ns) * 1e-9;
   const auto expected = static_cast<std::int64_t>(std::llround((first_row_media_s - original.start_s) * kRate));
   constexpr std::int64_t kWindow = kRate, kSearch = kRate / 8;  // 1 s compared, lags within 125 ms

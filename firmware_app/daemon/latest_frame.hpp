@@ -156,6 +156,8 @@ class SingleProducerRing {
     for (std::uint64_t tail = tail_.load(std::memory_order_relaxed); tail != head; ++tail) take(slots_[tail % N]);
     tail_.store(head, std::memory_order_release);
   }
+  /// Consumer: drops the oldest queued item (front() must have returned one).
+  void pop() { tail_.store(tail_.load(std::memory_order_relaxed) + 1, std::memory_order_release); }
   /// Consumer: drops what is queued.
   void clear() { tail_.store(head_.load(std::memory_order_acquire), std::memory_order_release); }
   /// Items the ring dropped since the last call.

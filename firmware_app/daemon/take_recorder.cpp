@@ -121,6 +121,7 @@ void TakeRecorder::open_take(const std::filesystem::path& file) {
   }
   last_sync_ = std::chrono::steady_clock::now();
   spdlog::info("recording a take to {}", file.string());
+  last_row_ns_.reset();
   if (sound_) {
     sound_->open(std::filesystem::path(file).replace_extension(".wav"));
     sound_zero_pending_ = true;
@@ -142,7 +143,7 @@ void TakeRecorder::close_take() {
   }
   ::fdatasync(fd_.get());
   fd_.reset();
-  if (sound_) sound_->close();
+  if (sound_) sound_->close(last_row_ns_);  // the sound ends with the last row
   const std::uint64_t lost = ring_.take_dropped();
   if (lost > 0)
     spdlog::warn("{}: take closed; {} rows were lost because the storage could not keep up", file_.string(), lost);
@@ -162,6 +163,7 @@ void TakeRecorder::drain() {
   // Without an open take the rows are discarded.
   ring_.consume([&](const FrameResult& r) {
     if (!fd_.valid()) return;
+    last_row_ns_ = r.capture_time_ns;
     append_measures_csv_row(lines_, {r.sequence, r.media_time_s, source_}, r.tracked ? &r.measures : nullptr, r.visemes,
                             r.signals.arkit(), nullptr);
     fmt::format_to(std::back_inserter(lines_), ",{},{}", drive_source_name(r.drive), r.capture_time_ns);

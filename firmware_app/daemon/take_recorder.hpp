@@ -94,6 +94,7 @@ class TakeRecorder : public ResultSink {
   fmt::memory_buffer lines_;
   bool header_pending_ = false;      // the header waits for the take's first row (its timecode)
   bool sound_zero_pending_ = false;  // the sound waits for the take's first row (its capture time)
+  std::optional<std::int64_t> last_row_ns_;  // capture time of the take's last row so far: where its sound ends
 
   std::thread thread_;
 };

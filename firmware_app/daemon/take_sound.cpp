@@ -24,17 +24,28 @@ void TakeSound::open(const std::filesystem::path& file) {
 }
 
 void TakeSound::drain() {
-  if (file_ && !zero_ns_) return;  // the blocks wait for the take's first row
-  ring_.consume([&](const AudioBlock& block) {
-    if (!file_) return;  // without an open take (or after a write error) dropped
-    if (block.capture_time_ns > now_ns_())  // read after the block was queued
-      ++future_blocks_;
-    else
-      write(block);
-  });
+  if (!file_) {
+    ring_.clear();  // without an open take (or after a write error) dropped
+    return;
+  }
+  if (!zero_ns_) return;  // the blocks wait for the take's first row
+  take_blocks(now_ns_() - kBehind, std::nullopt);
 }
 
-void TakeSound::write(const AudioBlock& block) {
+void TakeSound::take_blocks(std::optional<std::int64_t> before_ns, std::optional<std::int64_t> end_ns) {
+  const std::int64_t now = now_ns_();
+  while (const AudioBlock* block = ring_.front()) {
+    if (block->capture_time_ns > now) {  // read after the block was queued
+      ++future_blocks_;
+    } else {
+      if (before_ns && block->capture_time_ns >= *before_ns) return;
+      if (file_) write(*block, end_ns);
+    }
+    ring_.pop();
+  }
+}
+
+void TakeSound::write(const AudioBlock& block, std::optional<std::int64_t> end_ns) {
   // Where the block's first sample lies in the file. A block a few samples early or late of
   // where the last one ended (clock jitter) continues it; a later one leaves a gap of silence;
   // sound from before the file's end (or its start) is cut.
@@ -42,19 +53,24 @@ void TakeSound::write(const AudioBlock& block) {
       std::llround(static_cast<double>(block.capture_time_ns - *zero_ns_) * block.sample_rate * 1e-9));
   const std::int64_t written = file_->samples(), slack = block.sample_rate / 500;  // 2 ms
   const std::int64_t skip = start < written - slack ? written - start : 0;
-  if (skip >= block.frames) return;
+  const std::int64_t frames =
+      end_ns ? std::clamp<std::int64_t>(static_cast<std::int64_t>(static_cast<double>(*end_ns - block.capture_time_ns) *
+                                                                  block.sample_rate * 1e-9),
+                                        0, block.frames)
+             : block.frames;
+  if (skip >= frames) return;
   try {
     if (start > written + slack) file_->write_silence(start - written);
-    file_->write(std::span(block.samples.data() + skip, static_cast<std::size_t>(block.frames - skip)));
+    file_->write(std::span(block.samples.data() + skip, static_cast<std::size_t>(frames - skip)));
   } catch (const AudioSourceError& e) {
     spdlog::error("{}; the rest of the take is recorded without its sound", e.what());
     file_.reset();
   }
 }
 
-void TakeSound::close() {
+void TakeSound::close(std::optional<std::int64_t> end_ns) {
   if (!file_) return;
-  drain();
+  if (zero_ns_) take_blocks(std::nullopt, end_ns);
   if (!file_) return;
   try {
     file_->close();

@@ -5,7 +5,9 @@
 // k / rate. Lost blocks and a sound that starts late are filled with silence; what came before
 // the first row is cut. A block stamped later than the clock reads (an audio clock that jumped
 // ahead) is left out rather than filled up to with silence: the silence a gap adds is bounded
-// by the time that really passed.
+// by the time that really passed. The recorder writes the sound half a second behind the clock
+// (kBehind), so that when the take stops its sound can end with its last row: what was heard
+// after that row is cut. A stretch without rows inside a take (the camera gone) keeps its sound.
 //
 // Thread model: push() is called by one thread, the audio listener's: it never blocks and never
 // allocates (a full ring drops the block, counted). Every other call is made by the take
@@ -41,15 +43,22 @@ class TakeSound {
   /// Recorder thread: the capture time of the take's first row, the file's time zero. Blocks
   /// wait in the ring until it is known.
   void start_at(std::int64_t first_row_ns) { zero_ns_ = first_row_ns; }
-  /// Recorder thread: writes the blocks queued so far (without an open take, drops them).
+  /// Recorder thread: writes the queued blocks captured more than kBehind ago (without an open
+  /// take, drops every queued block).
   void drain();
-  /// Recorder thread: writes what is queued and closes the file.
-  void close();
+  /// Recorder thread: writes what is queued, up to `end_ns` when given (the capture time of the
+  /// take's last row), and closes the file.
+  void close(std::optional<std::int64_t> end_ns = std::nullopt);
 
  private:
   static constexpr std::size_t kRingSize = 256;  // 2.5 s of the voice room's 10 ms blocks
+  static constexpr std::int64_t kBehind = 500'000'000;  // ns: the ring holds five times this
 
-  void write(const AudioBlock& block);
+  // Writes the block's samples captured before `end_ns` (all without one) where they belong.
+  void write(const AudioBlock& block, std::optional<std::int64_t> end_ns);
+  // Takes the queued blocks captured before `before_ns` (all without one) off the ring and writes
+  // them, each cut at `end_ns`.
+  void take_blocks(std::optional<std::int64_t> before_ns, std::optional<std::int64_t> end_ns);
 
   int sample_rate_;
   std::int64_t (*now_ns_)();
