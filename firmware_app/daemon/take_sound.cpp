@@ -29,16 +29,16 @@ void TakeSound::drain() {
     return;
   }
   if (!zero_ns_) return;  // the blocks wait for the take's first row
-  take_blocks(now_ns_() - kBehind, std::nullopt);
+  take_blocks(kBehind, std::nullopt);
 }
 
-void TakeSound::take_blocks(std::optional<std::int64_t> before_ns, std::optional<std::int64_t> end_ns) {
+void TakeSound::take_blocks(std::int64_t behind_ns, std::optional<std::int64_t> end_ns) {
   const std::int64_t now = now_ns_();
   while (const AudioBlock* block = ring_.front()) {
     if (block->capture_time_ns > now) {  // read after the block was queued
       ++future_blocks_;
     } else {
-      if (before_ns && block->capture_time_ns >= *before_ns) return;
+      if (block->capture_time_ns > now - behind_ns) return;  // held
       if (file_) write(*block, end_ns);
     }
     ring_.pop();
@@ -70,7 +70,7 @@ void TakeSound::write(const AudioBlock& block, std::optional<std::int64_t> end_n
 
 void TakeSound::close(std::optional<std::int64_t> end_ns) {
   if (!file_) return;
-  if (zero_ns_) take_blocks(std::nullopt, end_ns);
+  if (zero_ns_) take_blocks(0, end_ns);
   if (!file_) return;
   try {
     file_->close();

@@ -56,9 +56,9 @@ class TakeSound {
 
   // Writes the block's samples captured before `end_ns` (all without one) where they belong.
   void write(const AudioBlock& block, std::optional<std::int64_t> end_ns);
-  // Takes the queued blocks captured before `before_ns` (all without one) off the ring and writes
-  // them, each cut at `end_ns`.
-  void take_blocks(std::optional<std::int64_t> before_ns, std::optional<std::int64_t> end_ns);
+  // Takes the queued blocks captured at least `behind_ns` before now off the ring (0: every one)
+  // and writes them, each cut at `end_ns`; a block stamped after now is counted and left out.
+  void take_blocks(std::int64_t behind_ns, std::optional<std::int64_t> end_ns);
 
   int sample_rate_;
   std::int64_t (*now_ns_)();
