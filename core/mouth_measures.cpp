@@ -3,14 +3,21 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace lipdrive {
 
 MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity,
                                std::span<const double> rest) {
+  // The model-space measures read these landmarks; one unmapped would make them NaN on every frame.
+  for (const int landmark : {ibug::kNoseTip, ibug::kRightEyeInner, ibug::kLeftEyeInner, ibug::kOuterLipTop,
+                             ibug::kInnerCornerRight, ibug::kInnerLipTop, ibug::kInnerCornerLeft, ibug::kInnerLipBottom}) {
+    const int mapped = model.landmark_vertex[landmark];
+    if (mapped < 0 || mapped >= model.num_vertices())
+      throw std::invalid_argument("the model does not map landmark " + std::to_string(landmark) +
+                                  " to a vertex (the mouth measures read landmarks 30, 39, 42, 51, 60, 62, 64 and 66)");
+  }
   const int vertex = model.landmark_vertex[ibug::kOuterLipTop];
-  if (vertex < 0 || vertex >= model.num_vertices())
-    throw std::invalid_argument("the model does not map landmark 51 (upper-lip midpoint) to a vertex");
   const auto neutral = model.pose_index("neutral");
   const Eigen::VectorXf shape = neutral               ? model.shape(model.pose_coefficients.col(*neutral))
                                 : identity.size() > 0 ? model.shape(identity)

@@ -39,7 +39,7 @@ struct MouthReference {
 /// performer's `identity` (Fitter's; empty = the mean face) and, for a model with expression
 /// shapes, by the weights of the performer's rest point (`rest`, the model's order; empty =
 /// none), so that the performer's rest measures protrusion 0. Throws std::invalid_argument when
-/// landmark 51 is unmapped.
+/// a landmark measure_mouth() reads from the model (30, 39, 42, 51, 60, 62, 64, 66) is unmapped.
 MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity = Eigen::VectorXf(),
                                std::span<const double> rest = {});
 

@@ -78,9 +78,16 @@ MorphableModel protrusion_model(bool with_neutral) {
 TEST(MouthReference, NeutralPoseOrTheMean) {
   EXPECT_DOUBLE_EQ(mouth_reference(protrusion_model(true)).neutral_upper_lip_z, 2.0);  // mean 0 + 1 * stddev 2
   EXPECT_DOUBLE_EQ(mouth_reference(protrusion_model(false)).neutral_upper_lip_z, 0.0);
-  MorphableModel unmapped = protrusion_model(true);
-  unmapped.landmark_vertex[51] = -1;
-  EXPECT_THROW(mouth_reference(unmapped), std::invalid_argument);
+  // Every landmark the measures read from the model must be mapped: a lips-only model would
+  // measure NaN widths and protrusions on every frame.
+  for (const int landmark : {30, 39, 42, 51, 60, 62, 64, 66}) {
+    MorphableModel unmapped = protrusion_model(true);
+    unmapped.landmark_vertex[landmark] = -1;
+    EXPECT_THROW(mouth_reference(unmapped), std::invalid_argument) << "landmark " << landmark;
+  }
+  MorphableModel jaw_unmapped = protrusion_model(true);
+  jaw_unmapped.landmark_vertex[ibug::kChin] = -1;
+  EXPECT_NO_THROW(mouth_reference(jaw_unmapped)) << "the measures do not read the jaw line";
 }
 
 // A model with expression shapes: the identity's shape moved by the rest point's weights.
