@@ -63,11 +63,13 @@ std::span<const double> ChannelBank::step(const DriveSignals& signals, const Dri
     if (spec.signal == Signal::kTracking) {
       desired = map_to_output(spec, input.tracked ? 1.0 : 0.0);
     } else {
-      if (live) {
+      // A signal that is not a number (a measure the frame could not make) keeps the last target:
+      // NaN passes every clamp, and no servo may be sent it.
+      if (live && std::isfinite(signals[spec.signal])) {
         double value = signals[spec.signal];
         if (spec.smoothed) value = filters_[i].filter(value, static_cast<double>(input.frame_time_ns) * 1e-9);
         held_target_[i] = map_to_output(spec, value);
-      } else {
+      } else if (!live) {
         filters_[i].reset();
       }
       desired = neutral_[i] + gain_ * (held_target_[i] - neutral_[i]);

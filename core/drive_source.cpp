@@ -31,6 +31,9 @@ const DriveSignals& HandOver::step(DriveSource source, const DriveSignals& video
     voice_ = voice;
     weight_ = std::min(1.0, weight_ + fade_step);
   }
+  // Whole, each source is passed as it is (a NaN of the other source does not leak in as 0 * NaN).
+  if (weight_ == 0) return video_;
+  if (weight_ == 1) return voice_;
   const auto w = static_cast<float>(weight_);
   for (std::size_t i = 0; i < mixed_.values.size(); ++i)
     mixed_.values[i] = (1 - w) * video_.values[i] + w * voice_.values[i];

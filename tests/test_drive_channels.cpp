@@ -209,6 +209,26 @@ TEST(ChannelBank, SmoothedChannelsFilterOnFrameTimesOnly) {
   EXPECT_EQ(bank.values()[1], before);
 }
 
+TEST(ChannelBank, ASignalThatIsNotANumberKeepsTheLastTarget) {
+  std::vector<ChannelSpec> specs{open_channel(), open_channel()};
+  specs[1].smoothed = true;
+  ChannelBank bank(specs, {.hold_ns = 100 * kMs, .ease_ns = 0});
+  std::int64_t now = 0;
+  for (; now < 500 * kMs; now += kFrameNs)
+    bank.step(open_at(0.5f), {.tracked = true, .now_ns = now, .frame_time_ns = now});
+  const std::array<double, 2> before{bank.values()[0], bank.values()[1]};
+  for (const float bad : {std::nanf(""), INFINITY, -INFINITY}) {
+    const auto values = bank.step(open_at(bad), {.tracked = true, .now_ns = now, .frame_time_ns = now});
+    EXPECT_EQ(values[0], before[0]) << bad;
+    EXPECT_EQ(values[1], before[1]) << bad;
+    now += kFrameNs;
+  }
+  // The smoothed channel's filter never saw it: the next number is filtered as before.
+  const auto values = bank.step(open_at(0.5f), {.tracked = true, .now_ns = now, .frame_time_ns = now});
+  EXPECT_TRUE(std::isfinite(values[1]));
+  EXPECT_NEAR(values[1], 1500, 1);
+}
+
 TEST(ChannelBank, StepAllocatesNothing) {
   std::vector<ChannelSpec> specs(kMaxChannels, open_channel());
   ChannelBank bank(specs, {});
@@ -258,6 +278,11 @@ TEST(HandOver, CrossFadesToTheVoiceAndBackOverTheCrossFadeTime) {
   for (; now <= back + kFade; now += kTick) hand_over.step(DriveSource::kVideo, open_at(0.6f), open_at(0.9f), now);
   EXPECT_FLOAT_EQ(hand_over.step(DriveSource::kVideo, open_at(0.6f), open_at(0.9f), now)[Signal::kOpen], 0.6f);
   EXPECT_DOUBLE_EQ(hand_over.voice_weight(), 0.0);
+  // Whole, a source passes as it is: the last face's NaN does not leak into the voice as 0 * NaN.
+  hand_over.step(DriveSource::kVideo, open_at(NAN), open_at(0.9f), now);
+  for (const std::int64_t lost_again = now; now <= lost_again + 2 * kFade; now += kTick)
+    hand_over.step(DriveSource::kVoice, open_at(0.0f), open_at(0.9f), now);
+  EXPECT_FLOAT_EQ(hand_over.step(DriveSource::kVoice, open_at(0.0f), open_at(0.9f), now)[Signal::kOpen], 0.9f);
 }
 
 TEST(ChannelBank, TheVoiceDrivesLikeAFaceAndItsLossIsTheFailSafe) {
