@@ -105,7 +105,8 @@ void AudioFeatures::reset() {
 int AudioFeatures::push(std::span<const float> samples, std::span<FeatureFrame> out) {
   int written = 0;
   fvec_t& hop = *aubio_->hop;
-  for (const float sample : samples) {
+  for (const float heard : samples) {
+    const float sample = std::isfinite(heard) ? heard : 0.0f;
     hop.data[filled_++] = sample;
     hop_energy_ += static_cast<double>(sample) * sample;
     if (filled_ < settings_.hop) continue;

@@ -57,7 +57,8 @@ class AudioFeatures {
 
   /// Feeds samples in [-1, 1]; writes each frame completed on the way into `out` and returns
   /// how many. `out` needs room for samples.size() / hop + 1 frames; frames beyond it are
-  /// dropped. Allocates nothing.
+  /// dropped. A sample that is not a number (a damaged float file) is taken as silence: one
+  /// would otherwise make every later frame NaN. Allocates nothing.
   int push(std::span<const float> samples, std::span<FeatureFrame> out);
   /// Starts a new stream: the window empties, frame indices count from 0 (allocates).
   void reset();

@@ -3,9 +3,24 @@
 #include "core/statistics.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 
 namespace lipdrive {
+
+namespace {
+
+/// The double of a float's shortest decimal: the nearest rank of 0.1f of 200 levels must be the
+/// 20th, as of 0.1, not the 21st (0.1f · 200 = 20.0000003).
+double as_decimal(float value) {
+  char text[32];
+  const auto written = std::to_chars(text, text + sizeof text, value);
+  double decimal = value;
+  std::from_chars(text, written.ptr, decimal);
+  return decimal;
+}
+
+}  // namespace
 
 const char* invalid_voice_activity(const VoiceActivitySettings& s) {
   if (!(s.margin_db > 0 && s.margin_db < 100)) return "margin outside (0, 100) dB";
@@ -16,6 +31,9 @@ const char* invalid_voice_activity(const VoiceActivitySettings& s) {
     return "onset or hangover out of range";
   return "";
 }
+
+VoiceActivity::VoiceActivity(const VoiceActivitySettings& settings)
+    : settings_(settings), floor_quantile_(as_decimal(settings.floor_quantile)) {}
 
 bool VoiceActivity::end_run(bool speech) {
   if (active_) {
@@ -49,7 +67,7 @@ bool VoiceActivity::step(float level_db) {
   // The quantile by the nearest rank (core/statistics.hpp) over a copy: the window keeps its order.
   std::copy_n(window_.begin(), window_count_, sorted_.begin());
   floor_ = static_cast<float>(
-      quantile(std::span(sorted_.data(), static_cast<std::size_t>(window_count_)), settings_.floor_quantile));
+      quantile(std::span(sorted_.data(), static_cast<std::size_t>(window_count_)), floor_quantile_));
   return end_run(level >= floor_ + settings_.margin_db);
 }
 

@@ -34,7 +34,7 @@ const char* invalid_voice_activity(const VoiceActivitySettings& settings);
 
 class VoiceActivity {
  public:
-  explicit VoiceActivity(const VoiceActivitySettings& settings = {}) : settings_(settings) {}
+  explicit VoiceActivity(const VoiceActivitySettings& settings = {});
 
   /// One frame's level (dB); true while the voice is active.
   bool step(float level_db);
@@ -46,6 +46,7 @@ class VoiceActivity {
   bool end_run(bool speech);
 
   VoiceActivitySettings settings_;
+  double floor_quantile_;  // settings_.floor_quantile as the decimal it stands for (0.1f is 0.1000000015)
   std::array<float, kMaxSmoothingFrames> recent_{};  // the last levels, for the mean
   std::array<float, kMaxFloorFrames> window_{};      // the last means, for the floor
   std::array<double, kMaxFloorFrames> sorted_{};     // scratch for the quantile

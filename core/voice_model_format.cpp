@@ -89,8 +89,9 @@ VoiceModel deserialize_voice_model(std::span<const std::uint8_t> bytes, const st
   // Sizes are checked before anything is allocated from them.
   const auto fail = [&](const std::string& what) { throw VoiceFormatError(source + ": " + what); };
   if (const std::string problem = invalid_feature_settings(f); !problem.empty()) fail("features: " + problem);
-  if (m.context.stride < 1 || m.context.past < 0 || m.context.lookahead < 0 || m.context.taps() > kMaxVoiceTaps ||
-      m.context.past > 10'000 || m.context.lookahead > 10'000)
+  // The bounds first: taps() of two huge counts would overflow.
+  if (m.context.stride < 1 || m.context.past < 0 || m.context.lookahead < 0 || m.context.past > 10'000 ||
+      m.context.lookahead > 10'000 || m.context.taps() > kMaxVoiceTaps)
     fail("context out of range");
   if (hidden > kMaxVoiceHidden) fail(std::to_string(hidden) + " hidden units (at most 256)");
   if (targets != kNumVoiceTargets) fail(std::to_string(targets) + " targets (this build knows 4)");

@@ -113,6 +113,27 @@ TEST(AudioFeatures, BlocksOfAnySizeGiveTheSameFramesWithoutAllocating) {
           << "frame " << i;
 }
 
+TEST(AudioFeatures, ASampleThatIsNotANumberIsSilenceNotTheEndOfTheFeatures) {
+  const AudioFeatureSettings settings;
+  std::mt19937 random(5);
+  std::normal_distribution<float> noise(0, 0.1f);
+  std::vector<float> sound(8000);
+  for (float& s : sound) s = noise(random);
+  std::vector<float> damaged = sound, silenced = sound;
+  damaged[1600] = std::nanf("");
+  damaged[1601] = INFINITY;
+  silenced[1600] = silenced[1601] = 0;
+  const std::vector<FeatureFrame> read = extract_features(settings, damaged);
+  const std::vector<FeatureFrame> expected = extract_features(settings, silenced);
+  ASSERT_EQ(read.size(), expected.size());
+  for (std::size_t i = 0; i < read.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(read[i].level_db)) << "frame " << i;
+    for (int d = 0; d < settings.dims(); ++d)
+      ASSERT_EQ(read[i].values[static_cast<std::size_t>(d)], expected[i].values[static_cast<std::size_t>(d)])
+          << "frame " << i;
+  }
+}
+
 TEST(AudioFeatures, FrameAtPlacesTimesOnWindowCentres) {
   const AudioFeatureSettings s;  // hop 160, window 512: frame k centred at (k+1)·160 - 256 samples
   EXPECT_EQ(frame_at(s, (5 * 160 + 160 - 256) / 16000.0), 5);
@@ -141,6 +162,14 @@ TEST(VoiceActivity, SpeechAboveTheFloorStartsAfterTheOnsetAndEndsAfterTheHangove
   for (int i = 0; i < 250; ++i) vad.step(-40);
   EXPECT_FALSE(vad.active());
   EXPECT_NEAR(vad.floor_db(), -40, 0.1);
+}
+
+TEST(VoiceActivity, TheFloorIsTheNearestRankOfTheQuantileAsWritten) {
+  VoiceActivitySettings settings;  // floor_quantile 0.1f of 200 frames: the 20th lowest
+  settings.smoothing_frames = 1;
+  VoiceActivity vad(settings);
+  for (int i = 0; i < 200; ++i) vad.step(-80.0f + static_cast<float>(i) * 0.1f);  // -80.0, -79.9, ...
+  EXPECT_NEAR(vad.floor_db(), -78.1f, 1e-4) << "the 20th of 200 levels (0.1 of 200), not the 21st";
 }
 
 // ---- the predictor ------------------------------------------------------------------------
