@@ -3,6 +3,7 @@
 #include "core/statistics.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -31,7 +32,9 @@ CalibrationSample calibration_sample(const MouthMeasures& measures) {
 }
 
 void CalibrationCapture::add(const MouthMeasures& measures) {
-  if (count_ < kCapacity) samples_[static_cast<std::size_t>(count_++)] = calibration_sample(measures);
+  const CalibrationSample sample = calibration_sample(measures);
+  if (!std::isfinite(sample.open) || !std::isfinite(sample.width) || !std::isfinite(sample.protrusion)) return;
+  if (count_ < kCapacity) samples_[static_cast<std::size_t>(count_++)] = sample;
 }
 
 namespace {
@@ -57,7 +60,7 @@ CalibrationSample median(std::span<const CalibrationSample> neutral) {
 constexpr double kMinOpenSpan = 0.05, kMinWidthSpan = 0.03, kMinProtrusionSpan = 0.005;
 
 void require_span(const MeasureRange& range, double min_span, const char* what, const char* how) {
-  if (range.max - range.min < min_span)
+  if (!(range.max - range.min >= min_span))  // NaN included
     throw CalibrationError(std::string("the range of motion shows no ") + what + " (" +
                            std::to_string(range.max - range.min) + " of d): " + how);
 }

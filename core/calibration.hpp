@@ -75,6 +75,7 @@ class CalibrationError : public std::runtime_error {
 class CalibrationCapture {
  public:
   static constexpr int kCapacity = 3600;  // a minute at 60 fps; later samples are ignored
+  /// Keeps the frame's measures; a frame with one that is not a number is left out.
   void add(const MouthMeasures& measures);
   void clear() { count_ = 0; }
   int size() const { return count_; }

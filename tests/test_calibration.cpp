@@ -67,6 +67,10 @@ TEST(Calibration, RefusesCapturesThatCannotCalibrate) {
   } catch (const CalibrationError& e) {
     EXPECT_NE(std::string(e.what()).find("mouth opening"), std::string::npos) << e.what();
   }
+  // A measure that is not a number in every frame (a model that cannot measure it) is no range.
+  std::vector<CalibrationSample> no_width = range_of_motion();
+  for (CalibrationSample& s : no_width) s.width = std::nan("");
+  EXPECT_THROW(calibrate(still_face(30, {0.02, 0.85, 0}), no_width), CalibrationError);
 }
 
 TEST(Calibration, RecentringFollowsAHelmetSlipAndKeepsTheSpans) {
@@ -92,6 +96,9 @@ TEST(Calibration, CaptureKeepsAtMostItsCapacity) {
   EXPECT_EQ(capture.size(), CalibrationCapture::kCapacity);
   EXPECT_EQ(capture.samples()[0].open, 0.3);
   capture.clear();
+  m.width_fit = std::nan("");
+  capture.add(m);
+  EXPECT_EQ(capture.size(), 0) << "a frame with a measure that is not a number is left out";
   EXPECT_EQ(capture.size(), 0);
 }
 
