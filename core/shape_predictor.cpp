@@ -204,11 +204,15 @@ void check_fields(const DlibFields& f) {
       fail("cascade " + std::to_string(c) + ": bad feature pixel table");
     for (unsigned long a : f.anchor_idx[c])
       if (a >= static_cast<unsigned long>(kNumLandmarks)) fail("feature pixel anchored to a missing landmark");
+    // As read_compact() checks them, so that every .dat read converts to an .lpp that reads.
+    if (f.forests[c].empty()) fail("cascade " + std::to_string(c) + " has no trees");
     for (const auto& tree : f.forests[c]) {
       if (tree.splits.size() != splits || tree.leaf_values.size() != splits + 1)
         fail("trees of different depths (cascade " + std::to_string(c) + ")");
-      for (const auto& s : tree.splits)
+      for (const auto& s : tree.splits) {
         if (s.idx1 >= features || s.idx2 >= features) fail("split refers to a missing feature pixel");
+        if (!std::isfinite(s.thresh)) fail("a split threshold that is not a finite number");
+      }
       for (const auto& leaf : tree.leaf_values) {
         if (leaf.size() != 2 * kNumLandmarks) fail("leaf of the wrong size");
         for (const float v : leaf)
@@ -515,9 +519,12 @@ ShapePredictorData ShapePredictorData::read_compact(std::span<const std::uint8_t
     const int features = d.cascade_first_feature_[c + 1] - d.cascade_first_feature_[c];
     const auto first = static_cast<std::size_t>(d.cascade_first_tree_[c]) * splits_per_tree;
     const auto end = static_cast<std::size_t>(d.cascade_first_tree_[c + 1]) * splits_per_tree;
-    for (std::size_t i = first; i < end; ++i)
-      if (d.splits_[i].first >= features || d.splits_[i].second >= features || !std::isfinite(d.splits_[i].threshold))
+    for (std::size_t i = first; i < end; ++i) {
+      if (d.splits_[i].first >= features || d.splits_[i].second >= features)
         fail("split " + std::to_string(i) + " refers to a missing feature pixel");
+      if (!std::isfinite(d.splits_[i].threshold))
+        fail("split " + std::to_string(i) + ": a threshold that is not a finite number");
+    }
   }
   if (!within_shape_range(d.initial_shape_) || !within_shape_range(d.delta_)) fail(kShapeRangeError);
   for (const Leaf& leaf : d.leaf_increments_)
