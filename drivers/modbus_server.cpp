@@ -20,6 +20,7 @@
 #include <cstring>
 #include <optional>
 #include <stdexcept>
+#include <utility>
 
 namespace lipdrive {
 
@@ -27,6 +28,7 @@ namespace {
 
 // RTU: a failed serial line is reopened with back-off, from 100 ms up to 5 s.
 constexpr std::chrono::milliseconds kReopenFirst{100}, kReopenMax{5000};
+constexpr int kAcceptRetryMs = 100;
 
 /// The holding registers a request writes and the values they get, decoded from the request
 /// itself so that the owner hears of a write before the acknowledgement goes out. Empty when
@@ -120,7 +122,9 @@ ModbusServer::~ModbusServer() {
   const std::uint64_t one = 1;
   [[maybe_unused]] const ssize_t ignored = ::write(wake_fd_.get(), &one, sizeof one);
   thread_.join();
-  modbus_set_socket(context_.get(), -1);  // client sockets were the thread's; the listener is listen_fd_'s
+  // TCP: the client sockets were the thread's, the listener is listen_fd_'s. RTU: the context's
+  // socket is the serial line, which modbus_close() (the context's deleter) closes.
+  if (endpoint_.transport == ModbusEndpoint::Transport::kTcp) modbus_set_socket(context_.get(), -1);
 }
 
 std::string ModbusServer::describe() const {
@@ -155,6 +159,7 @@ void ModbusServer::serve_tcp() {
   std::vector<UniqueFd> clients;
   std::vector<pollfd> fds;
   bool refusing = false;  // log a full server once, not once per refused connection
+  bool cannot_accept = false;  // and a process out of descriptors once
   while (!stopping_.load(std::memory_order_relaxed)) {
     fds.assign({{wake_fd_.get(), POLLIN, 0}, {listen_fd_.get(), POLLIN, 0}});
     for (const UniqueFd& client : clients) fds.push_back({client.get(), POLLIN, 0});
@@ -174,7 +179,17 @@ void ModbusServer::serve_tcp() {
     }
     if (!(fds[1].revents & POLLIN)) continue;
     UniqueFd client(::accept4(listen_fd_.get(), nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK));
-    if (client.get() == -1) continue;
+    if (client.get() == -1) {
+      // Out of descriptors or memory: the connection stays queued and poll() would return at
+      // once; wait a little (or for stop) instead of spinning a core.
+      if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) {
+        if (!std::exchange(cannot_accept, true))
+          spdlog::warn("modbus server {}: cannot accept a connection: {}", describe(), std::strerror(errno));
+        wait_readable(-1, kAcceptRetryMs);
+      }
+      continue;
+    }
+    cannot_accept = false;
     if (static_cast<int>(clients.size()) >= max_clients_) {
       if (!std::exchange(refusing, true))
         spdlog::warn("modbus server {}: refusing connections, {} clients already", describe(), max_clients_);

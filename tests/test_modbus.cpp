@@ -223,6 +223,23 @@ TEST(ModbusServer, RtuServesTheSameMapOverASerialLine) {
   EXPECT_TRUE(wait_for([&] { return !output.healthy(); }, 2s));
 }
 
+std::size_t open_descriptors() {
+  return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator("/proc/self/fd"), {}));
+}
+
+TEST(ModbusServer, AnRtuServerClosesItsLineWhenItGoes) {
+  const test::TempDir dir;
+  const test::PtyPair line(dir.path());
+  ModbusServerOptions options;
+  options.link.transport = ModbusEndpoint::Transport::kRtu;
+  options.link.line.device = line.a;
+  options.link.line.baud = 115200;
+  DriveControl control;
+  const std::size_t before = open_descriptors();
+  for (int reload = 0; reload < 3; ++reload) ModbusServerOutput(options, kChannels, control);
+  EXPECT_EQ(open_descriptors(), before) << "each reload of the daemon builds its outputs again";
+}
+
 // ---------------------------------------------------------------- robustness
 
 /// A raw TCP connection, for what a libmodbus master would never send.
