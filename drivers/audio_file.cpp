@@ -3,6 +3,7 @@
 #include "drivers/ffmpeg_handles.hpp"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 extern "C" {
 #include <libavutil/opt.h>
@@ -59,22 +60,12 @@ class TrackDecoder {
     if (const int e = avcodec_open2(codec_.get(), codec, nullptr); e < 0)
       fail(fmt::format("cannot open the audio decoder: {}", error_text(e)));
 
-    // Resampled in the track's own channel layout, planar float; the channels are averaged here.
-    SwrContext* resampler = nullptr;
-    if (const int e = swr_alloc_set_opts2(&resampler, &codec_->ch_layout, AV_SAMPLE_FMT_FLTP, rate_, &codec_->ch_layout,
-                                          codec_->sample_fmt, codec_->sample_rate, 0, nullptr);
-        e < 0)
-      fail(fmt::format("cannot resample: {}", error_text(e)));
-    resampler_.reset(resampler);
-    // Samples placed by their timestamps: where the track's timestamps run ahead of its samples
-    // by more than kMaxDrift_s (a recorder lost some), libswresample fills the gap with
-    // silence; where they fall behind (overlap), it drops the excess. Nothing is stretched.
-    av_opt_set_double(resampler, "min_comp", kMaxDrift_s, 0);
-    av_opt_set_double(resampler, "min_hard_comp", kMaxDrift_s, 0);
-    if (const int e = swr_init(resampler); e < 0) fail(fmt::format("cannot resample: {}", error_text(e)));
-    channels_ = codec_->ch_layout.nb_channels;
-    if (channels_ < 1) fail("the audio track has no channels");
+    open_resampler(codec_->ch_layout, codec_->sample_fmt, codec_->sample_rate);
   }
+
+  ~TrackDecoder() { av_channel_layout_uninit(&in_layout_); }
+  TrackDecoder(const TrackDecoder&) = delete;
+  TrackDecoder& operator=(const TrackDecoder&) = delete;
 
   DecodedAudio decode() {
     DecodedAudio out;
@@ -101,19 +92,59 @@ class TrackDecoder {
     throw AudioSourceError(fmt::format("{}: {}", name_, reason));
   }
 
+  /// A resampler from this channel layout, sample format and rate to planar float at rate_ (the
+  /// channels are averaged in convert()), whose output starts where the samples so far end.
+  void open_resampler(const AVChannelLayout& layout, AVSampleFormat format, int sample_rate) {
+    if (layout.nb_channels < 1) fail("the audio track has no channels");
+    if (const int e = av_channel_layout_copy(&in_layout_, &layout); e < 0)
+      fail(fmt::format("cannot resample: {}", error_text(e)));
+    SwrContext* resampler = nullptr;
+    if (const int e = swr_alloc_set_opts2(&resampler, &in_layout_, AV_SAMPLE_FMT_FLTP, rate_, &in_layout_, format,
+                                          sample_rate, 0, nullptr);
+        e < 0)
+      fail(fmt::format("cannot resample: {}", error_text(e)));
+    resampler_.reset(resampler);
+    // Samples placed by their timestamps: where the track's timestamps run ahead of its samples
+    // by more than kMaxDrift_s (a recorder lost some), libswresample fills the gap with
+    // silence; where they fall behind (overlap), it drops the excess. Nothing is stretched.
+    av_opt_set_double(resampler, "min_comp", kMaxDrift_s, 0);
+    av_opt_set_double(resampler, "min_hard_comp", kMaxDrift_s, 0);
+    if (const int e = swr_init(resampler); e < 0) fail(fmt::format("cannot resample: {}", error_text(e)));
+    in_format_ = format;
+    in_rate_ = sample_rate;
+    channels_ = layout.nb_channels;
+  }
+
   void send(const AVPacket* packet, AVFrame* frame, DecodedAudio& out) {
-    if (const int e = avcodec_send_packet(codec_.get(), packet); e < 0 && e != AVERROR_EOF)
+    // A damaged packet is skipped, as a player skips it; the samples after it keep their
+    // timestamps, so the gap is silence and nothing later moves.
+    if (const int e = avcodec_send_packet(codec_.get(), packet); e == AVERROR_INVALIDDATA)
+      ++out.damaged_packets;
+    else if (e < 0 && e != AVERROR_EOF)
       fail(fmt::format("cannot decode the audio: {}", error_text(e)));
     for (;;) {
       const int e = avcodec_receive_frame(codec_.get(), frame);
       if (e == AVERROR(EAGAIN) || e == AVERROR_EOF) return;
+      if (e == AVERROR_INVALIDDATA) {
+        ++out.damaged_packets;
+        continue;
+      }
       if (e < 0) fail(fmt::format("cannot decode the audio: {}", error_text(e)));
-      // The frame's place after the track's first sample, in libswresample's units of
-      // 1 / (input rate × output rate) seconds.
+      // A track whose channels, sample format or rate change (clips joined end to end): what the
+      // last resampler holds goes out, and a new one takes the frames from here.
+      if (frame->format != in_format_ || frame->sample_rate != in_rate_ ||
+          av_channel_layout_compare(&frame->ch_layout, &in_layout_) != 0) {
+        convert(nullptr, 0, out);
+        origin_ = static_cast<std::int64_t>(out.samples.size());
+        open_resampler(frame->ch_layout, static_cast<AVSampleFormat>(frame->format), frame->sample_rate);
+      }
+      // The frame's place after the track's first sample, less where this resampler's output
+      // began, in libswresample's units of 1 / (input rate × output rate) seconds.
       const std::int64_t pts = frame->best_effort_timestamp;
-      const std::int64_t units_per_tick = static_cast<std::int64_t>(time_base_.num) * codec_->sample_rate * rate_;
-      swr_next_pts(resampler_.get(),
-                   pts == AV_NOPTS_VALUE ? INT64_MIN : av_rescale(pts - first_pts_, units_per_tick, time_base_.den));
+      const std::int64_t units_per_tick = static_cast<std::int64_t>(time_base_.num) * in_rate_ * rate_;
+      swr_next_pts(resampler_.get(), pts == AV_NOPTS_VALUE ? INT64_MIN
+                                                           : av_rescale(pts - first_pts_, units_per_tick, time_base_.den) -
+                                                                 origin_ * in_rate_);
       convert(const_cast<const std::uint8_t**>(frame->extended_data), frame->nb_samples, out);
       av_frame_unref(frame);
     }
@@ -143,6 +174,11 @@ class TrackDecoder {
   ffmpeg::Format format_;
   ffmpeg::Codec codec_;
   std::unique_ptr<SwrContext, ResamplerFreer> resampler_;
+  // What the resampler takes, and the output sample its output began at.
+  AVChannelLayout in_layout_{};
+  AVSampleFormat in_format_ = AV_SAMPLE_FMT_NONE;
+  int in_rate_ = 0;
+  std::int64_t origin_ = 0;
   int stream_ = -1;
   int channels_ = 0;
   double start_s_ = 0;
@@ -156,7 +192,11 @@ class TrackDecoder {
 DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate) {
   if (sample_rate < 8000 || sample_rate > 192'000)
     throw AudioSourceError(fmt::format("{}: sample rate {} Hz out of range", file.string(), sample_rate));
-  return TrackDecoder(file, sample_rate).decode();
+  DecodedAudio audio = TrackDecoder(file, sample_rate).decode();
+  if (audio.damaged_packets > 0)
+    spdlog::warn("{}: {} damaged audio packet{} skipped (silence in their place)", file.string(), audio.damaged_packets,
+                 audio.damaged_packets == 1 ? "" : "s");
+  return audio;
 }
 
 struct WavWriter::Muxer {

@@ -20,11 +20,13 @@ struct DecodedAudio {
   /// Where samples[0] lies on the recording's timeline, whose 0 is its first video frame (the
   /// audio stream's start minus the video stream's; 0 without a video stream).
   double start_s = 0;
+  int damaged_packets = 0;  // skipped (their time is silence)
 };
 
-/// Decodes the first audio track of `file` and resamples it to `sample_rate`. Throws
-/// AudioSourceError naming the file: it cannot be opened or read, it has no audio track, or
-/// the track cannot be decoded.
+/// Decodes the first audio track of `file` and resamples it to `sample_rate`, following a
+/// track whose channels, sample format or rate change on the way; damaged packets are skipped
+/// and counted (a warning in the log). Throws AudioSourceError naming the file: it cannot be
+/// opened or read, it has no audio track, or the track cannot be decoded.
 DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate);
 
 /// A mono 16-bit PCM WAV file written block by block through FFmpeg's WAV muxer. The sizes in

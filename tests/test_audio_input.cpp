@@ -313,6 +313,63 @@ TEST(AudioFile, SoundTheRecorderDroppedIsAGapInTimeNotLost) {
   EXPECT_NEAR(static_cast<double>(onset) / 16000 + audio.start_s, 2.0, 0.01);
 }
 
+/// Crossings of zero per second over [from, to) seconds of the decoded samples, halved: the
+/// frequency of a tone.
+double tone_hz(const DecodedAudio& audio, double from, double to) {
+  int crossings = 0;
+  const auto at = [&](double t) { return static_cast<std::size_t>((t - audio.start_s) * audio.sample_rate); };
+  for (std::size_t i = at(from) + 1; i < at(to); ++i) crossings += (audio.samples[i - 1] < 0) != (audio.samples[i] < 0);
+  return crossings / 2.0 / (to - from);
+}
+
+TEST(AudioFile, ATrackWhoseChannelsChangeOnTheWayIsFollowed) {
+  // Two MP3 recordings joined end to end, a stereo 440 Hz tone then a mono 880 Hz one: the
+  // decoder's frames change from two channels to one in mid-track.
+  const test::TempDir dir;
+  const auto mp3 = [&](const char* name, int hz, int channels) {
+    const fs::path file = dir.path() / name;
+    EXPECT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -f lavfi -i sine=f={}:d=1:r=44100 -ac {} -c:a libmp3lame "
+                                            "-id3v2_version 0 -write_xing 0 {}",
+                                            hz, channels, file.string()))
+                  .exit_code,
+              0);
+    return file;
+  };
+  const fs::path stereo = mp3("stereo.mp3", 440, 2), mono = mp3("mono.mp3", 880, 1);
+  const fs::path joined = dir.path() / "joined.mp3";
+  ASSERT_EQ(test::run_command(fmt::format("cat {} {} > {}", stereo.string(), mono.string(), joined.string())).exit_code,
+            0);
+  const DecodedAudio audio = decode_audio(joined, 16000);
+  EXPECT_NEAR(static_cast<double>(audio.samples.size()) / 16000, 2.0, 0.1);
+  EXPECT_NEAR(tone_hz(audio, 0.2, 0.8), 440, 5);
+  EXPECT_NEAR(tone_hz(audio, 1.3, 1.8), 880, 5) << "the mono half at its own pitch and time";
+}
+
+TEST(AudioFile, ADamagedPacketIsSkippedAndTheRestOfTheTrackKept) {
+  // An MP3 stream with garbage in the middle of a frame (a damaged recording): decoded, the
+  // track keeps its length and the tone after the damage is heard at its time.
+  const test::TempDir dir;
+  const fs::path clean = dir.path() / "clean.mp3";
+  ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -f lavfi -i sine=f=440:d=2:r=44100 -c:a libmp3lame "
+                                          "-id3v2_version 0 -write_xing 0 {}",
+                                          clean.string()))
+                .exit_code,
+            0);
+  std::string bytes;
+  {
+    std::ifstream in(clean, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_GT(bytes.size(), 8000u);
+  for (std::size_t i = bytes.size() / 2; i < bytes.size() / 2 + 600; ++i) bytes[i] = static_cast<char>(0xff - (i % 7));
+  const fs::path damaged = dir.path() / "damaged.mp3";
+  std::ofstream(damaged, std::ios::binary) << bytes;
+  const DecodedAudio audio = decode_audio(damaged, 16000);
+  EXPECT_GT(audio.damaged_packets, 0);
+  EXPECT_NEAR(static_cast<double>(audio.samples.size()) / 16000, 2.0, 0.1);
+  EXPECT_NEAR(tone_hz(audio, 1.5, 1.9), 440, 5);
+}
+
 TEST(AudioFile, AClipWithoutAudioOrAFileThatIsNoRecordingIsAnErrorNamingIt) {
   const test::TempDir dir;
   const fs::path silent = dir.path() / "video_only.avi";
