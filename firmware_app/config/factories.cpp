@@ -79,7 +79,9 @@ std::unique_ptr<TimecodeSource> make_timecode(const Config& config) {
   switch (timecode.source) {
     case Config::Timecode::Source::kNone: return nullptr;
     case Config::Timecode::Source::kClock: return std::make_unique<ClockTimecode>(timecode.rate);
-    case Config::Timecode::Source::kLtc: return std::make_unique<LtcTimecode>(make_ltc_input(timecode), timecode.rate);
+    case Config::Timecode::Source::kLtc:
+      return std::make_unique<LtcTimecode>(make_ltc_input(timecode), timecode.rate,
+                                           config.scheduling.realtime_priority);
   }
   return nullptr;
 }
@@ -120,7 +122,7 @@ std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* cl
     input = std::move(capture);
   }
   try {
-    auto room = std::make_unique<VoiceRoom>(std::move(input), model, sound);
+    auto room = std::make_unique<VoiceRoom>(std::move(input), model, sound, config.scheduling.realtime_priority);
     spdlog::info("{}, model {} (delay {:.0f} ms: look-ahead {:.0f} ms + half the analysis window)", room->describe(),
                  voice.model.string(), model.delay_s() * 1e3,
                  1e3 * model.context.lookahead * model.features.hop / model.features.sample_rate);

@@ -12,12 +12,13 @@ constexpr std::chrono::milliseconds kAudioWait{100};
 
 }  // namespace
 
-AudioListener::AudioListener(std::unique_ptr<AudioSource> input, const char* thread_name, Hear hear)
+AudioListener::AudioListener(std::unique_ptr<AudioSource> input, const char* thread_name, int realtime_priority,
+                             Hear hear)
     : input_(std::move(input)),
       input_name_(input_->describe()),
       hear_(std::move(hear)),
       thread_(&AudioListener::run, this) {
-  name_thread(thread_, thread_name);
+  schedule_thread(thread_, thread_name, realtime_priority);
 }
 
 AudioListener::~AudioListener() {

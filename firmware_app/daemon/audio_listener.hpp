@@ -23,8 +23,12 @@ class AudioListener {
  public:
   using Hear = std::function<void(const AudioBlock&)>;
 
-  /// Takes the input and starts hearing it on a thread named `thread_name`.
-  AudioListener(std::unique_ptr<AudioSource> input, const char* thread_name, Hear hear);
+  /// Takes the input and starts hearing it on a thread named `thread_name`, under SCHED_FIFO at
+  /// `realtime_priority` when it is above 0: the frame path's priority ([scheduling]), since
+  /// the frame path's threads read what `hear` publishes through seqlocks and would spin on a
+  /// half-written value while a writer of lower priority waits for their CPU. A refusal leaves
+  /// it under the normal scheduler, as the frame path (which says so in the log).
+  AudioListener(std::unique_ptr<AudioSource> input, const char* thread_name, int realtime_priority, Hear hear);
   ~AudioListener();
   AudioListener(const AudioListener&) = delete;
   AudioListener& operator=(const AudioListener&) = delete;

@@ -61,9 +61,9 @@ class ClockTimecode : public TimecodeSource {
 /// unstamped.
 class LtcTimecode : public TimecodeSource {
  public:
-  /// Takes the audio input; starts reading it. Throws std::runtime_error when libltc cannot
-  /// make its decoder.
-  LtcTimecode(std::unique_ptr<AudioSource> input, TimecodeRate rate);
+  /// Takes the audio input; starts reading it (at the frame path's `realtime_priority`,
+  /// AudioListener). Throws std::runtime_error when libltc cannot make its decoder.
+  LtcTimecode(std::unique_ptr<AudioSource> input, TimecodeRate rate, int realtime_priority = 0);
 
   std::optional<std::int32_t> frame_at(std::int64_t capture_time_ns) const override;
   std::string problem() const override;

@@ -6,12 +6,13 @@
 
 namespace lipdrive {
 
-VoiceRoom::VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model, TakeSound* sound)
+VoiceRoom::VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model, TakeSound* sound,
+                     int realtime_priority)
     : features_(model.features),
       predictor_(model),
       frames_(static_cast<std::size_t>(kMaxAudioBlockFrames / model.features.hop + 1)),
       sound_(sound),
-      listener_(std::move(input), "lipdrive-voice", [this](const AudioBlock& block) {
+      listener_(std::move(input), "lipdrive-voice", realtime_priority, [this](const AudioBlock& block) {
         hear(block);
         if (sound_) sound_->push(block);
       }) {}

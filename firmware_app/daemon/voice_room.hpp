@@ -36,10 +36,12 @@ struct VoiceState {
 
 class VoiceRoom {
  public:
-  /// Takes the input; starts hearing it, and passing every block to `sound` when given (takes'
-  /// sound; it must outlive the room). Throws std::invalid_argument when the model cannot be
-  /// run (core/voice_model.hpp), std::runtime_error when aubio cannot make its objects.
-  VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model, TakeSound* sound = nullptr);
+  /// Takes the input; starts hearing it (at the frame path's `realtime_priority`, AudioListener),
+  /// and passing every block to `sound` when given (takes' sound; it must outlive the room).
+  /// Throws std::invalid_argument when the model cannot be run (core/voice_model.hpp),
+  /// std::runtime_error when aubio cannot make its objects.
+  VoiceRoom(std::unique_ptr<AudioSource> input, const VoiceModel& model, TakeSound* sound = nullptr,
+            int realtime_priority = 0);
   VoiceRoom(const VoiceRoom&) = delete;
   VoiceRoom& operator=(const VoiceRoom&) = delete;
 
