@@ -389,6 +389,27 @@ PipelineSettings neutral_out_of_reach() {
   return settings;
 }
 
+TEST_F(PipelineTest, ACameraThatFallsSilentWithoutAnErrorIsNotConnectedUntilFramesComeAgain) {
+  // A stream that stalls without reporting anything (a cable glitch): grab() only times out.
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  options.faults.stall_every = 20;
+  options.faults.stall = 1500ms;
+  PipelineSettings settings;
+  settings.frame_wait = 20ms;
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
+  pipeline.start();
+  wait_for([&] { return !pipeline.stats().connected; }, 30s);
+  ASSERT_FALSE(pipeline.stats().connected) << "reported after a second without frames";
+  const PipelineStats during = pipeline.stats();
+  EXPECT_EQ(during.disconnects, 0u) << "a silence is not a disconnect the source reported";
+  wait_for([&] { return pipeline.stats().connected; }, 30s);
+  EXPECT_TRUE(pipeline.stats().connected) << "connected again with the next frame";
+  EXPECT_GT(pipeline.stats().captured, during.captured);
+  pipeline.stop();
+}
+
 TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   SimulatedCameraOptions options = clip_options();
   options.real_time = true;

@@ -34,6 +34,7 @@ CaptureCounters Capture::counters() const {
 
 void Capture::run() {
   Frame frame;
+  std::int64_t last_frame_ns = monotonic_ns();
   while (!stop_.load(std::memory_order_relaxed)) {
     GrabStatus status;
     try {
@@ -43,7 +44,8 @@ void Capture::run() {
       failed_.store(true, std::memory_order_release);
       return;
     }
-    heartbeat_ns_.store(monotonic_ns(), std::memory_order_relaxed);
+    const std::int64_t now = monotonic_ns();
+    heartbeat_ns_.store(now, std::memory_order_relaxed);
     switch (status) {
       case GrabStatus::kFrame: {
         CapturedFrame& slot = frames_.back();
@@ -53,10 +55,12 @@ void Capture::run() {
         slot.sequence = frame.sequence;
         slot.media_time_s = frame.media_time_s;
         frames_.publish();
+        last_frame_ns = now;
         const bool was_connected = connected_.exchange(true);
+        const bool was_silent = silent_.exchange(false);
         if (captured_.fetch_add(1, std::memory_order_relaxed) == 0)
           spdlog::info("{}: delivering frames", name_);
-        else if (!was_connected)
+        else if (!was_connected || was_silent)
           spdlog::info("{}: delivering frames again", name_);
         break;
       }
@@ -75,7 +79,11 @@ void Capture::run() {
         spdlog::info("{}: end of the recording", name_);
         ended_.store(true, std::memory_order_release);
         return;
-      case GrabStatus::kTimeout: break;
+      case GrabStatus::kTimeout:
+        // Logged once per silence; a disconnect the source reports later is counted as before.
+        if (now - last_frame_ns >= std::chrono::nanoseconds(kSilentAfter).count() && !silent_.exchange(true))
+          spdlog::warn("{}: no frame for {} ms; {}", name_, (now - last_frame_ns) / 1'000'000, when_lost_);
+        break;
     }
   }
 }

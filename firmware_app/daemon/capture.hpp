@@ -58,8 +58,12 @@ class Capture {
   /// stays the consumer's until its next take().
   const CapturedFrame* take(std::chrono::nanoseconds timeout) { return frames_.take(timeout); }
 
-  /// No disconnect since the last frame (true from the start, until the source reports one).
-  bool connected() const { return connected_.load(std::memory_order_relaxed); }
+  /// No disconnect since the last frame (true from the start, until the source reports one),
+  /// and a frame within kSilentAfter: a camera that stops sending without an error (a cable
+  /// glitch, a stream that stalls) is not connected either.
+  bool connected() const {
+    return connected_.load(std::memory_order_relaxed) && !silent_.load(std::memory_order_relaxed);
+  }
   /// Frames are flowing: some arrived, and since the last one no disconnect, end or failure.
   bool delivering() const {
     return connected() && captured_.load(std::memory_order_relaxed) > 0 && !ended() && !failed();
@@ -78,6 +82,7 @@ class Capture {
   const std::string& name() const { return name_; }
 
   static constexpr std::chrono::milliseconds kGrabTimeout{100};  // how often the thread looks up from grab()
+  static constexpr std::chrono::milliseconds kSilentAfter{1000};  // no frame this long: reported, not connected
 
  private:
   void run();
@@ -86,7 +91,7 @@ class Capture {
   const std::string description_, name_, when_lost_;
   const double frame_rate_;
   LatestFrame<CapturedFrame> frames_;
-  std::atomic<bool> connected_{true}, ended_{false}, failed_{false}, stop_{false};
+  std::atomic<bool> connected_{true}, silent_{false}, ended_{false}, failed_{false}, stop_{false};
   std::atomic<std::int64_t> heartbeat_ns_{0};
   std::atomic<std::uint64_t> captured_{0}, disconnects_{0}, corrupt_{0};
   std::thread thread_;  // last: it uses everything above
