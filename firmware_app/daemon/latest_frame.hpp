@@ -94,7 +94,9 @@ class Published {
     sequence_.store(sequence + 1, std::memory_order_relaxed);  // odd: a write is under way
     std::atomic_thread_fence(std::memory_order_release);
     for (std::size_t i = 0; i < kWords; ++i) words_[i].store(words[i], std::memory_order_relaxed);
-    sequence_.store(sequence + 2, std::memory_order_release);
+    // Version 0 means "nothing published": after 2^31 publishes (the voice's 100 a second wrap
+    // in 248 days) the count goes on at 1.
+    sequence_.store(sequence + 2 == 0 ? 2 : sequence + 2, std::memory_order_release);
     detail::futex_wake_all(sequence_);
   }
 

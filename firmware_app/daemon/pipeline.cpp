@@ -281,9 +281,12 @@ void Pipeline::output_loop() {
     const bool tracked = result.tracked && connected && now - result.capture_time_ns <= max_result_age_ns_;
     bool heard = false;
     const std::uint32_t voice_version = voice_state(now, voice, heard);
+    const DriveSource before = source;
     source = select_source(tracked, heard);
     const bool new_voice = source == DriveSource::kVoice && voice_version != voice_seen;
-    if (new_voice) voice_drive = voice_signals(voice);
+    // The voice takes over with its newest prediction, not the one it last drove with.
+    if (new_voice || (source == DriveSource::kVoice && before != DriveSource::kVoice))
+      voice_drive = voice_signals(voice);
     voice_seen = voice_version;
     const DriveSignals& signals = hand_over_.step(source, result.signals, voice_drive, now);
     channels_.step(signals, {.tracked = tracked,
