@@ -136,10 +136,13 @@ AudioBlock timeline_block(std::int64_t first, std::int64_t stamp_offset = 0) {
   return block;
 }
 
+std::int64_t fake_now_ns = 0;
+
 TEST(TakeSound, TheFilesFirstSampleIsTheFirstRowsAndGapsAreSilence) {
   test::TempDir dir;
   const fs::path wav = dir.path() / "take.wav";
-  TakeSound sound(kRate);
+  fake_now_ns = timeline_ns(6 * kBlock);  // the clock just after the last block
+  TakeSound sound(kRate, [] { return fake_now_ns; });
   sound.open(wav);
   sound.push(timeline_block(-kBlock));  // before the first row: cut
   sound.push(timeline_block(0));        // holds the first row's sample 100
@@ -167,6 +170,28 @@ TEST(TakeSound, TheFilesFirstSampleIsTheFirstRowsAndGapsAreSilence) {
   }
 }
 
+TEST(TakeSound, ALongWaitForTheFirstRowLosesNoneOfTheTakesSound) {
+  // The camera is away when the take starts: 5 s of sound (more than the ring holds) before the
+  // first row. The file still starts with the first row's sample.
+  test::TempDir dir;
+  const fs::path wav = dir.path() / "take.wav";
+  TakeSound sound(kRate, [] { return fake_now_ns; });
+  sound.open(wav);
+  constexpr int kWait = 500, kAfter = 20;
+  for (int b = 0; b < kWait + kAfter; ++b) {
+    sound.push(timeline_block(b * kBlock));
+    fake_now_ns = timeline_ns((b + 1) * kBlock);
+    if (b == kWait) sound.start_at(timeline_ns(kWait * kBlock + 100));
+    if (b % 10 == 0) sound.drain();  // the recorder's pace
+  }
+  sound.close();
+  const DecodedAudio back = decode_audio(wav, kRate);
+  ASSERT_EQ(back.samples.size(), static_cast<std::size_t>(kAfter * kBlock - 100));
+  for (std::size_t k = 0; k < back.samples.size(); ++k)
+    ASSERT_NEAR(back.samples[k], timeline_sample(kWait * kBlock + 100 + static_cast<std::int64_t>(k)), 1e-4)
+        << "file sample " << k;
+}
+
 TEST(TakeSound, WithoutATakeTheBlocksAreDropped) {
   test::TempDir dir;
   TakeSound sound(kRate);
@@ -182,7 +207,6 @@ TEST(TakeSound, WithoutATakeTheBlocksAreDropped) {
 }
 
 // The clock a TakeSound reads in the tests below.
-std::int64_t fake_now_ns = 0;
 
 // A block stamped later than the clock reads (the audio clock jumped ahead) is left out rather
 // than reached with hours of silence; the blocks after it go on where the sound was.

@@ -206,6 +206,9 @@ bool TakeRecorder::write_all(const char* data, std::size_t size) {
 
 void TakeRecorder::fail(const std::string& message) {
   spdlog::error("{}", message);
+  // The take's lost rows are this take's, not the next one's.
+  if (const std::uint64_t lost = ring_.take_dropped(); lost > 0)
+    spdlog::warn("{}: {} rows were lost before, because the storage could not keep up", file_.string(), lost);
   active_ = false;
   fd_.reset();
   if (sound_) sound_->close();  // the take ended: so does its sound

@@ -28,7 +28,15 @@ void TakeSound::drain() {
     ring_.clear();  // without an open take (or after a write error) dropped
     return;
   }
-  if (!zero_ns_) return;  // the blocks wait for the take's first row
+  if (!zero_ns_) {
+    // The blocks wait for the take's first row. What is heard before it is not the take's
+    // (write() would cut it): while the camera is away the ring keeps the last half second, so
+    // that a long wait does not fill it and count the sound lost.
+    const std::int64_t before = now_ns_() - kBehind;
+    for (const AudioBlock* block = ring_.front(); block && block->capture_time_ns <= before; block = ring_.front())
+      ring_.pop();
+    return;
+  }
   take_blocks(kBehind, std::nullopt);
 }
 
