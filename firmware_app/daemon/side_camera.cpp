@@ -4,14 +4,16 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdlib>
+#include <utility>
 
 namespace lipdrive {
 
 SideCamera::SideCamera(std::unique_ptr<FrameSource> source, SideProfileSettings settings, int neutral_frames)
     : capture_(std::move(source), "side camera", "protrusion comes from the front camera's fit"),
       meter_(settings),
-      neutral_frames_(neutral_frames) {}
+      neutral_(static_cast<std::size_t>(std::max(neutral_frames, 1))) {}
 
 const CapturedFrame* SideCamera::nearest(std::int64_t front_time_ns, std::int64_t half_period_ns) {
   if (const CapturedFrame* newer = capture_.take(std::chrono::nanoseconds(0))) current_ = newer;
@@ -32,16 +34,17 @@ std::optional<double> SideCamera::protrusion_near(std::int64_t front_time_ns, st
   const CapturedFrame* frame = nearest(front_time_ns, half_period_ns);
   if (!frame) return std::nullopt;
   if (!reference_) {
-    // Fixing the reference allocates (a few frame copies), once per calibration, not per frame.
-    neutral_.push_back(frame->gray.clone());
-    if (static_cast<int>(neutral_.size()) < neutral_frames_) return std::nullopt;
+    frame->gray.copyTo(neutral_[static_cast<std::size_t>(neutral_count_++)]);
+    if (neutral_count_ < static_cast<int>(neutral_.size())) return std::nullopt;
+    neutral_count_ = 0;
     try {
       reference_ = calibrate_side(meter_, neutral_);
       spdlog::info("{}: reference fixed (nose {:.1f} px)", capture_.name(), reference_->nose_length_px);
+      failing_ = false;
     } catch (const SideCalibrationError& e) {
-      spdlog::warn("{}: {}; trying again on the next frames", capture_.name(), e.what());
+      if (!std::exchange(failing_, true))
+        spdlog::warn("{}: {}; trying again on the next frames", capture_.name(), e.what());
     }
-    neutral_.clear();
     return std::nullopt;
   }
   const SideMeasure measure = meter_.measure(frame->gray, *reference_);

@@ -48,7 +48,7 @@ class SideCamera {
   /// Processing thread: fix the reference line again on the next neutral frames.
   void recalibrate() {
     reference_.reset();
-    neutral_.clear();
+    neutral_count_ = 0;
   }
   /// Processing thread, a few times a second for the monitor's preview: the newest side frame
   /// (taken without waiting) and its profile, found again only when the frame was not the one
@@ -68,8 +68,11 @@ class SideCamera {
   // Processing thread's.
   SideProfileMeter meter_;
   std::optional<SideReference> reference_;
-  std::vector<cv::Mat> neutral_;  // the frames the reference is being fixed on
-  int neutral_frames_;
+  // The frames the reference is being fixed on: neutral_frames of them, whose pixels are
+  // allocated with the first side frames and reused by every attempt after.
+  std::vector<cv::Mat> neutral_;
+  int neutral_count_ = 0;
+  bool failing_ = false;  // the last attempt failed: the next failures are not logged again
   const CapturedFrame* current_ = nullptr;
   SideProfile profile_;                 // of the side frame measured last
   const CapturedFrame* profiled_ = nullptr;  // that frame
