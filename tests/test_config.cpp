@@ -327,6 +327,17 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   EXPECT_EQ(run_lipdrive("check-config " + (dir_ / "none.toml").string()).exit_code, 78);
 }
 
+TEST_F(ConfigTest, CalibrateWritesTheProfileTheConfigurationNames) {
+  // Every other command needs the named performer's profile; calibrate is what writes it.
+  write("", fmt::format("[performer]\nname = \"alice\"\nprofiles_dir = \"{}\"", dir_.string()));
+  EXPECT_THAT(error(), HasSubstr("key performer.name: no such performer profile"));
+  const test::CommandRun run =
+      run_lipdrive(fmt::format("calibrate --config {} --performer alice --input {}", file_.string(), kClip.string()));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(fs::exists(dir_ / "alice.toml"));
+  EXPECT_EQ(load_config(file_).performer.name, "alice") << "the profile it names now exists";
+}
+
 TEST_F(ConfigTest, GpioInputBiasIsAutomaticUnlessNamed) {
   write("", "[outputs.gpio]\nenable_switch = \"GPIO24\"\n");
   EXPECT_EQ(load_config(file_).outputs.gpio.input_bias, GpioBias::kAuto) << "auto by default";

@@ -287,7 +287,7 @@ void read_scheduling(Section scheduling, Config& config) {
   scheduling.reject_unknown_keys();
 }
 
-void read_performer(Section performer, Config& config) {
+void read_performer(Section performer, Config& config, ProfileCheck check) {
   Config::Performer& p = config.performer;
   p.name = performer.string("name", "");
   p.profiles_dir = performer.string("profiles_dir", p.profiles_dir.string());
@@ -296,7 +296,9 @@ void read_performer(Section performer, Config& config) {
   performer.reject_unknown_keys();
   if (p.name.empty()) return;
   try {
-    existing(performer, "name", profile_path(p.profiles_dir, p.name), "performer profile (run `lipdrive calibrate`)");
+    const fs::path profile = profile_path(p.profiles_dir, p.name);
+    if (check == ProfileCheck::kMustExist)
+      existing(performer, "name", profile, "performer profile (run `lipdrive calibrate`)");
   } catch (const std::invalid_argument& e) {
     performer.fail("name", e.what());
   }
@@ -631,7 +633,7 @@ void read_outputs(Section outputs, Config& config) {
 
 }  // namespace
 
-Config load_config(const fs::path& file) {
+Config load_config(const fs::path& file, ProfileCheck profile) {
   const std::string name = file.string();
   toml::table root;
   try {
@@ -652,7 +654,7 @@ Config load_config(const fs::path& file) {
   read_recording(top.table("recording"), config);
   read_status(top.table("status"), config);
   read_scheduling(top.table("scheduling"), config);
-  read_performer(top.table("performer"), config);
+  read_performer(top.table("performer"), config, profile);
   read_safety(top.table("safety"), config);
   read_channels(top.tables("channels"), config);
   read_outputs(top.table("outputs"), config);
