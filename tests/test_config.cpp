@@ -325,6 +325,9 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   EXPECT_EQ(run.exit_code, 78) << run.output;
   EXPECT_THAT(run.output, HasSubstr(file_.string() + ": key camera.fps: must be between 1 and 240, got 500"));
   EXPECT_EQ(run_lipdrive("check-config " + (dir_ / "none.toml").string()).exit_code, 78);
+  const test::CommandRun folder = run_lipdrive("check-config " + dir_.string());
+  EXPECT_EQ(folder.exit_code, 78) << folder.output;
+  EXPECT_THAT(folder.output, HasSubstr(dir_.string() + ": cannot read the file: not a regular file"));
 }
 
 TEST_F(ConfigTest, CalibrateWritesTheProfileTheConfigurationNames) {

@@ -635,6 +635,11 @@ void read_outputs(Section outputs, Config& config) {
 
 Config load_config(const fs::path& file, ProfileCheck profile) {
   const std::string name = file.string();
+  // toml++ reads a directory as an empty file: every default, silently. A missing file is
+  // reported by the parser below.
+  std::error_code ec;
+  if (const fs::file_status status = fs::status(file, ec); fs::exists(status) && !fs::is_regular_file(status))
+    throw ConfigError(fmt::format("{}: cannot read the file: not a regular file", name));
   toml::table root;
   try {
     root = toml::parse_file(name);
