@@ -262,6 +262,10 @@ TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].port: must be between 1 and 65535, got 70000"));
   write("", "[outputs]\nmodbus_server = 1");
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server: must be an array of tables"));
+  write("", "[[outputs.serial]]\ndevice = \"\"");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].device: serial device is empty"));
+  write("", "[[outputs.serial]]\nbaud = 12345");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].baud: serial baud 12345 is not supported"));
   write("", "[[outputs.modbus_server]]\nparity = \"X\"");
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].parity: must be one of N, E, O"));
   write("", "[performer]\nname = \"nobody\"\nprofiles_dir = \"" + dir_.string() + "\"");

@@ -373,7 +373,8 @@ SerialPortSettings read_serial_line(Section& section, std::string_view default_d
   try {
     validate_serial_settings(line);
   } catch (const std::invalid_argument& e) {
-    section.fail("baud", e.what());
+    // The ranges above leave the device and the baud to be refused here.
+    section.fail(line.device.empty() ? "device" : "baud", e.what());
   }
   return line;
 }
