@@ -266,6 +266,12 @@ TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
   EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].device: serial device is empty"));
   write("", "[[outputs.serial]]\nbaud = 12345");
   EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].baud: serial baud 12345 is not supported"));
+  write("",
+        std::string(kJawChannel) + "[[channels]]\nname = \"lips\"\n[[outputs.modbus_client]]\nfirst_register = 65535");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_client[0].first_register: 2 channels from register 65535 run "
+                                      "past the last register, 65535"));
+  write("", std::string(kJawChannel) + "[[outputs.modbus_client]]\nfirst_register = 65535");
+  EXPECT_EQ(load_config(file_).outputs.modbus_clients[0].first_register, 65535) << "one channel fits";
   write("", "[[outputs.modbus_server]]\nparity = \"X\"");
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].parity: must be one of N, E, O"));
   write("", "[performer]\nname = \"nobody\"\nprofiles_dir = \"" + dir_.string() + "\"");

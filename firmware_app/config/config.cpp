@@ -587,6 +587,11 @@ void read_outputs(Section outputs, Config& config) {
     options.channels = client.strings("channels");
     check_channel_names(client, "channels", options.channels, config);
     options.first_register = client.integer("first_register", options.first_register, 0, 65535);
+    // One register per channel, all of them in one write request.
+    const std::size_t registers = options.channels.empty() ? config.channels.size() : options.channels.size();
+    if (options.first_register + registers > 65536)
+      client.fail("first_register", fmt::format("{} channels from register {} run past the last register, 65535",
+                                                registers, options.first_register));
     options.rate_hz = client.integer("rate_hz", options.rate_hz, 1, 1000);
     options.timeout_ms = client.integer("timeout_ms", options.timeout_ms, 1, 10'000);
     options.max_backoff_ms = client.integer("max_backoff_ms", options.max_backoff_ms, 10, 600'000);
