@@ -340,6 +340,16 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   EXPECT_THAT(folder.output, HasSubstr(dir_.string() + ": cannot read the file: not a regular file"));
 }
 
+TEST_F(ConfigTest, RunRefusesANegativeFrameCount) {
+  write("");
+  // Under `timeout`: a count that wraps round runs until stopped.
+  const test::CommandRun run =
+      test::run_command(fmt::format("timeout 10 {} run --config {} --frames -1", test::kLipdrive, file_.string()));
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.exit_code, 124) << "ran: " << run.output;
+  EXPECT_THAT(run.output, HasSubstr("--frames: must not be negative"));
+}
+
 TEST_F(ConfigTest, CalibrateWritesTheProfileTheConfigurationNames) {
   // Every other command needs the named performer's profile; calibrate is what writes it.
   write("", fmt::format("[performer]\nname = \"alice\"\nprofiles_dir = \"{}\"", dir_.string()));
