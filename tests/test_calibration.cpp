@@ -191,5 +191,20 @@ TEST_F(ProfileFile, AMalformedIdentityIsAnErrorNamingTheKey) {
               HasSubstr("key identity.model_fingerprint"));
 }
 
+TEST_F(ProfileFile, ANumberThatIsNotFiniteOrARangeThatRunsBackwardsIsAnErrorNamingTheKey) {
+  using ::testing::HasSubstr;
+  const std::string v1 = kVersionOneProfile;
+  const auto with = [&v1](const std::string& from, const std::string& to) {
+    return std::string(v1).replace(v1.find(from), from.size(), to);
+  };
+  const std::string at = (dir_ / "p.toml").string() + ": key ";
+  EXPECT_EQ(load_error(with("min = 0.03", "min = nan")), at + "open.min: must be a finite number, got nan");
+  EXPECT_EQ(load_error(with("max = 1.8", "max = inf")), at + "width.max: must be a finite number, got inf");
+  EXPECT_EQ(load_error(with("protrusion = 0.0", "protrusion = -inf")),
+            at + "rest.protrusion: must be a finite number, got -inf");
+  EXPECT_EQ(load_error(with("max = 0.35", "max = 0.01")), at + "open.max: must be above min 0.03, got 0.01");
+  EXPECT_EQ(load_error(with("max = 0.35", "max = 0.03")), at + "open.max: must be above min 0.03, got 0.03");
+}
+
 }  // namespace
 }  // namespace lipdrive

@@ -262,6 +262,16 @@ TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].port: must be between 1 and 65535, got 70000"));
   write("", "[outputs]\nmodbus_server = 1");
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server: must be an array of tables"));
+  write("", "[[outputs.serial]]\ndevice = \"\"");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].device: serial device is empty"));
+  write("", "[[outputs.serial]]\nbaud = 12345");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.serial[0].baud: serial baud 12345 is not supported"));
+  write("",
+        std::string(kJawChannel) + "[[channels]]\nname = \"lips\"\n[[outputs.modbus_client]]\nfirst_register = 65535");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_client[0].first_register: 2 channels from register 65535 run "
+                                      "past the last register, 65535"));
+  write("", std::string(kJawChannel) + "[[outputs.modbus_client]]\nfirst_register = 65535");
+  EXPECT_EQ(load_config(file_).outputs.modbus_clients[0].first_register, 65535) << "one channel fits";
   write("", "[[outputs.modbus_server]]\nparity = \"X\"");
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].parity: must be one of N, E, O"));
   write("", "[performer]\nname = \"nobody\"\nprofiles_dir = \"" + dir_.string() + "\"");
@@ -325,6 +335,30 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   EXPECT_EQ(run.exit_code, 78) << run.output;
   EXPECT_THAT(run.output, HasSubstr(file_.string() + ": key camera.fps: must be between 1 and 240, got 500"));
   EXPECT_EQ(run_lipdrive("check-config " + (dir_ / "none.toml").string()).exit_code, 78);
+  const test::CommandRun folder = run_lipdrive("check-config " + dir_.string());
+  EXPECT_EQ(folder.exit_code, 78) << folder.output;
+  EXPECT_THAT(folder.output, HasSubstr(dir_.string() + ": cannot read the file: not a regular file"));
+}
+
+TEST_F(ConfigTest, RunRefusesANegativeFrameCount) {
+  write("");
+  // Under `timeout`: a count that wraps round runs until stopped.
+  const test::CommandRun run =
+      test::run_command(fmt::format("timeout 10 {} run --config {} --frames -1", test::kLipdrive, file_.string()));
+  EXPECT_NE(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.exit_code, 124) << "ran: " << run.output;
+  EXPECT_THAT(run.output, HasSubstr("--frames: must not be negative"));
+}
+
+TEST_F(ConfigTest, CalibrateWritesTheProfileTheConfigurationNames) {
+  // Every other command needs the named performer's profile; calibrate is what writes it.
+  write("", fmt::format("[performer]\nname = \"alice\"\nprofiles_dir = \"{}\"", dir_.string()));
+  EXPECT_THAT(error(), HasSubstr("key performer.name: no such performer profile"));
+  const test::CommandRun run =
+      run_lipdrive(fmt::format("calibrate --config {} --performer alice --input {}", file_.string(), kClip.string()));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(fs::exists(dir_ / "alice.toml"));
+  EXPECT_EQ(load_config(file_).performer.name, "alice") << "the profile it names now exists";
 }
 
 TEST_F(ConfigTest, GpioInputBiasIsAutomaticUnlessNamed) {

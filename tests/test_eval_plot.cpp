@@ -59,9 +59,9 @@ class EvalPlotTest : public ::testing::Test {
     return path;
   }
 
-  /// Runs the lipdrive binary with the given arguments (each single-quoted).
-  RunResult run(const std::vector<std::string>& args) const {
-    std::string command = test::kLipdrive;
+  /// Runs the lipdrive binary with the given arguments (each single-quoted), after `prefix`.
+  RunResult run(const std::vector<std::string>& args, const std::string& prefix = "") const {
+    std::string command = prefix + test::kLipdrive;
     for (const auto& arg : args) command += " '" + arg + "'";
     const fs::path err_path = dir_ / "stderr.txt";
     command += " 2>'" + err_path.string() + "'";
@@ -386,6 +386,15 @@ TEST_F(EvalPlotTest, PlotWritesARequestedSizeImageWithOneColourPerFile) {
   const auto one = dir_ / "one.png";
   ASSERT_EQ(run({"plot", a, "--columns", "width_2d", "--out", one}).exit_code, 0);
   EXPECT_EQ(line_colour_count(cv::imread(one.string(), cv::IMREAD_COLOR), 300), 1);
+}
+
+TEST_F(EvalPlotTest, PlotOfValuesThatDifferInTheirLastDigitIsAConstantLine) {
+  const auto near = write("near.csv", "frame,time_s,open\n0,0,0.3\n1,0.04,0.30000000000000004\n2,0.08,0.3\n");
+  const auto png = dir_ / "near.png";
+  // Under `timeout`: a plot whose ticks never pass the range's end runs until the memory is gone.
+  const RunResult result = run({"plot", near, "--columns", "open", "--out", png}, "timeout 10 ");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_EQ(line_colour_count(cv::imread(png.string(), cv::IMREAD_COLOR), 300), 1);
 }
 
 TEST_F(EvalPlotTest, PlotOfAMissingColumnFails) {

@@ -528,6 +528,22 @@ TEST_F(ProcessTest, UnreadableFolderFails) {
   EXPECT_NE(run.stderr_text.find("locked"), std::string::npos) << run.stderr_text;
 }
 
+TEST_F(ProcessTest, AMissingSideRecordingOrVoiceModelLeavesTheOutputAsItWas) {
+  const fs::path front = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(front);
+  const fs::path out = dir_ / "keep.csv";
+  constexpr const char* kEarlier = "an earlier table\n";
+  std::ofstream(out) << kEarlier;
+  for (const std::string option :
+       {"--side " + (dir_ / "nosuch.avi").string(), "--voice " + (dir_ / "nosuch.lpv").string()}) {
+    const ProcessRun run = run_process(fmt::format("{} {} --out {}", front.string(), option, out.string()), dir_);
+    EXPECT_NE(run.exit_code, 0) << option;
+    EXPECT_NE(run.stderr_text.find("nosuch"), std::string::npos) << run.stderr_text;
+    std::ifstream in(out);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()), kEarlier) << option;
+  }
+}
+
 TEST_F(ProcessTest, VideoWithoutAFaceWritesUntrackedRowsAndFails) {
   const fs::path noise = dir_ / "noise.avi";
   {

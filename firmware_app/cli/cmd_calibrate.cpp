@@ -115,7 +115,8 @@ PerformerIdentity fit_performer_identity(const Config& config, LoadedFiles& file
 }
 
 void run_calibrate(const CalibrateOptions& options) {
-  const Config config = load_config(options.config);
+  // The profile the configuration names may be the one this writes.
+  const Config config = load_config(options.config, ProfileCheck::kMayBeMissing);
   const std::filesystem::path out =
       options.out.empty() ? profile_path(config.performer.profiles_dir, options.performer) : options.out;
   const int neutral_frames = options.neutral_frames > 0 ? options.neutral_frames : config.performer.neutral_frames;

@@ -90,10 +90,16 @@ double tick_step(const Range& range, int count) {
   return nice_number(nice_number(range.high - range.low, false) / (count - 1), true);
 }
 
+/// The multiples of `step` within the range, each worked out from its index (adding a step
+/// below the values' rounding would never pass the range's end), at most kMaxTicks.
 std::vector<double> ticks_within(const Range& range, double step) {
+  constexpr double kMaxTicks = 100;
   std::vector<double> ticks;
   const double tolerance = step * 1e-9;
-  for (double tick = std::ceil(range.low / step) * step; tick <= range.high + tolerance; tick += step) {
+  const double first = std::ceil(range.low / step);
+  const double count = std::min(std::floor((range.high + tolerance) / step) - first + 1, kMaxTicks);
+  for (int i = 0; i < count; ++i) {
+    const double tick = (first + i) * step;
     ticks.push_back(std::abs(tick) < tolerance ? 0.0 : tick);
   }
   return ticks;
@@ -105,7 +111,8 @@ std::string tick_label(double value, double step) {
 }
 
 /// The finite extent of some series, padded so lines do not run along the frame;
-/// a constant series gets a band around its value, no data gets [0, 1].
+/// a constant series (or one that varies only in the last digits of its values) gets a band
+/// around its value, no data gets [0, 1].
 Range padded_range(const std::vector<const std::vector<double>*>& series, double padding) {
   double low = std::numeric_limits<double>::infinity();
   double high = -low;
@@ -117,7 +124,7 @@ Range padded_range(const std::vector<const std::vector<double>*>& series, double
     }
   }
   if (low > high) return {0, 1};
-  if (low == high) {
+  if (high - low <= std::max(std::abs(low), std::abs(high)) * 1e-9) {
     const double half_band = low == 0 ? 0.5 : std::abs(low) * 0.1;
     return {low - half_band, high + half_band};
   }

@@ -295,7 +295,14 @@ void run_process(const ProcessOptions& options) {
   const std::unique_ptr<FrameProcessor> processor = make_processor(config, profile);
   const Rotation rotation = rotation_of(options.rotate, config.camera.rotation);
   fit_take_identity(options.input, rotation, *processor);
+  std::optional<SideInput> side;
+  if (!options.side.empty())
+    side.emplace(options,
+                 rotation_of(options.side_rotate, config.side_camera ? config.side_camera->rotation : Rotation::k0));
+  std::optional<VoiceColumns> voice;
+  if (!options.voice.empty()) voice.emplace(options.voice, options.input);
 
+  // Opened once every input has been read and checked: a mistake in one leaves the file as it was.
   std::ofstream file;
   if (!options.out.empty()) {
     std::error_code ec;
@@ -304,12 +311,6 @@ void run_process(const ProcessOptions& options) {
     if (!file) throw CommandError(fmt::format("{}: cannot open for writing", options.out.string()));
   }
   std::ostream& out = options.out.empty() ? std::cout : file;
-  std::optional<SideInput> side;
-  if (!options.side.empty())
-    side.emplace(options, rotation_of(options.side_rotate,
-                                      config.side_camera ? config.side_camera->rotation : Rotation::k0));
-  std::optional<VoiceColumns> voice;
-  if (!options.voice.empty()) voice.emplace(options.voice, options.input);
   if (timecode)
     out << "# timecode_start " << format_frame(timecode->first, timecode->second).view() << " at "
         << rate_name(timecode->second) << " fps\n";

@@ -89,7 +89,11 @@ void add_run_command(CLI::App& app) {
   run->add_option("--config", options->config, "configuration file (see config/lipdrive.toml)")->required();
   run->add_flag("--record", options->daemon.record, "record a take from the start (see [recording])");
   run->add_option("--frames", options->daemon.max_frames,
-                  "stop after this many processed frames (0 = run until stopped)");
+                  "stop after this many processed frames (0 = run until stopped)")
+      // CLI11 reads -1 into the unsigned count as 2^64 - 1, a count never reached.
+      ->check(CLI::Validator(
+          [](std::string& value) { return value.starts_with('-') ? "must not be negative" : std::string(); },
+          "NONNEGATIVE"));
   run->add_flag("--stats", options->stats, "print frame counts, latency and fps on stderr at exit");
   run->callback([options] {
     if (const int code = run_daemon(*options); code != 0)

@@ -287,7 +287,7 @@ void read_scheduling(Section scheduling, Config& config) {
   scheduling.reject_unknown_keys();
 }
 
-void read_performer(Section performer, Config& config) {
+void read_performer(Section performer, Config& config, ProfileCheck check) {
   Config::Performer& p = config.performer;
   p.name = performer.string("name", "");
   p.profiles_dir = performer.string("profiles_dir", p.profiles_dir.string());
@@ -296,7 +296,9 @@ void read_performer(Section performer, Config& config) {
   performer.reject_unknown_keys();
   if (p.name.empty()) return;
   try {
-    existing(performer, "name", profile_path(p.profiles_dir, p.name), "performer profile (run `lipdrive calibrate`)");
+    const fs::path profile = profile_path(p.profiles_dir, p.name);
+    if (check == ProfileCheck::kMustExist)
+      existing(performer, "name", profile, "performer profile (run `lipdrive calibrate`)");
   } catch (const std::invalid_argument& e) {
     performer.fail("name", e.what());
   }
@@ -371,7 +373,8 @@ SerialPortSettings read_serial_line(Section& section, std::string_view default_d
   try {
     validate_serial_settings(line);
   } catch (const std::invalid_argument& e) {
-    section.fail("baud", e.what());
+    // The ranges above leave the device and the baud to be refused here.
+    section.fail(line.device.empty() ? "device" : "baud", e.what());
   }
   return line;
 }
@@ -584,6 +587,11 @@ void read_outputs(Section outputs, Config& config) {
     options.channels = client.strings("channels");
     check_channel_names(client, "channels", options.channels, config);
     options.first_register = client.integer("first_register", options.first_register, 0, 65535);
+    // One register per channel, all of them in one write request.
+    const std::size_t registers = options.channels.empty() ? config.channels.size() : options.channels.size();
+    if (options.first_register + registers > 65536)
+      client.fail("first_register", fmt::format("{} channels from register {} run past the last register, 65535",
+                                                registers, options.first_register));
     options.rate_hz = client.integer("rate_hz", options.rate_hz, 1, 1000);
     options.timeout_ms = client.integer("timeout_ms", options.timeout_ms, 1, 10'000);
     options.max_backoff_ms = client.integer("max_backoff_ms", options.max_backoff_ms, 10, 600'000);
@@ -631,8 +639,13 @@ void read_outputs(Section outputs, Config& config) {
 
 }  // namespace
 
-Config load_config(const fs::path& file) {
+Config load_config(const fs::path& file, ProfileCheck profile) {
   const std::string name = file.string();
+  // toml++ reads a directory as an empty file: every default, silently. A missing file is
+  // reported by the parser below.
+  std::error_code ec;
+  if (const fs::file_status status = fs::status(file, ec); fs::exists(status) && !fs::is_regular_file(status))
+    throw ConfigError(fmt::format("{}: cannot read the file: not a regular file", name));
   toml::table root;
   try {
     root = toml::parse_file(name);
@@ -652,7 +665,7 @@ Config load_config(const fs::path& file) {
   read_recording(top.table("recording"), config);
   read_status(top.table("status"), config);
   read_scheduling(top.table("scheduling"), config);
-  read_performer(top.table("performer"), config);
+  read_performer(top.table("performer"), config, profile);
   read_safety(top.table("safety"), config);
   read_channels(top.tables("channels"), config);
   read_outputs(top.table("outputs"), config);

@@ -221,8 +221,12 @@ struct Config {
   } outputs;
 };
 
+/// Whether the profile [performer] names must exist when the configuration loads: `lipdrive
+/// calibrate` is what writes it.
+enum class ProfileCheck { kMustExist, kMayBeMissing };
+
 /// Reads and validates a configuration file. Throws ConfigError naming the file, the key
 /// and the reason.
-Config load_config(const std::filesystem::path& file);
+Config load_config(const std::filesystem::path& file, ProfileCheck profile = ProfileCheck::kMustExist);
 
 }  // namespace lipdrive

@@ -29,11 +29,17 @@ double read_number(const toml::table& root, const fs::path& file, std::string_vi
   const std::string path = fmt::format("{}.{}", table, key);
   const auto value = root.at_path(path).value<double>();
   if (!value) malformed(file, path, "missing or not a number");
+  // nan or inf would reach every output (an OSC nan, a serial value rounded from nan).
+  if (!std::isfinite(*value)) malformed(file, path, fmt::format("must be a finite number, got {}", *value));
   return *value;
 }
 
+/// [measure] min and max; the daemon maps min..max onto 0..1, so min must be below max.
 MeasureRange read_range(const toml::table& root, const fs::path& file, std::string_view measure) {
-  return {read_number(root, file, measure, "min"), read_number(root, file, measure, "max")};
+  const MeasureRange range{read_number(root, file, measure, "min"), read_number(root, file, measure, "max")};
+  if (!(range.min < range.max))
+    malformed(file, fmt::format("{}.max", measure), fmt::format("must be above min {}, got {}", range.min, range.max));
+  return range;
 }
 
 toml::table range_table(const MeasureRange& range) { return toml::table{{"min", range.min}, {"max", range.max}}; }
@@ -113,10 +119,6 @@ PerformerProfile load_profile(const fs::path& file) {
   profile.open = read_range(root, file, "open");
   profile.width = read_range(root, file, "width");
   profile.protrusion = read_range(root, file, "protrusion");
-  for (const auto& [name, range] :
-       {std::pair{"open", profile.open}, {"width", profile.width}, {"protrusion", profile.protrusion}}) {
-    if (range.min == range.max) malformed(file, fmt::format("{}.max", name), "must differ from min");
-  }
   if (root["indices"].as_table()) {
     std::array<double, kNumFacialIndices> values{};
     for (int i = 0; i < kNumFacialIndices; ++i)
