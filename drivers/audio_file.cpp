@@ -24,6 +24,15 @@ struct ResamplerFreer {
   void operator()(SwrContext* s) const { swr_free(&s); }
 };
 
+/// A channel layout that frees what it holds (a custom layout's channel map).
+struct OwnedLayout {
+  AVChannelLayout layout{};
+  OwnedLayout() = default;
+  OwnedLayout(const OwnedLayout&) = delete;
+  OwnedLayout& operator=(const OwnedLayout&) = delete;
+  ~OwnedLayout() { av_channel_layout_uninit(&layout); }
+};
+
 double stream_start_s(const AVStream* stream) {
   if (stream->start_time == AV_NOPTS_VALUE) return 0;
   return static_cast<double>(stream->start_time) * av_q2d(stream->time_base);
@@ -63,10 +72,6 @@ class TrackDecoder {
     open_resampler(codec_->ch_layout, codec_->sample_fmt, codec_->sample_rate);
   }
 
-  ~TrackDecoder() { av_channel_layout_uninit(&in_layout_); }
-  TrackDecoder(const TrackDecoder&) = delete;
-  TrackDecoder& operator=(const TrackDecoder&) = delete;
-
   DecodedAudio decode() {
     DecodedAudio out;
     out.sample_rate = rate_;
@@ -96,11 +101,11 @@ class TrackDecoder {
   /// channels are averaged in convert()), whose output starts where the samples so far end.
   void open_resampler(const AVChannelLayout& layout, AVSampleFormat format, int sample_rate) {
     if (layout.nb_channels < 1) fail("the audio track has no channels");
-    if (const int e = av_channel_layout_copy(&in_layout_, &layout); e < 0)
+    if (const int e = av_channel_layout_copy(&in_layout_.layout, &layout); e < 0)
       fail(fmt::format("cannot resample: {}", error_text(e)));
     SwrContext* resampler = nullptr;
-    if (const int e = swr_alloc_set_opts2(&resampler, &in_layout_, AV_SAMPLE_FMT_FLTP, rate_, &in_layout_, format,
-                                          sample_rate, 0, nullptr);
+    if (const int e = swr_alloc_set_opts2(&resampler, &in_layout_.layout, AV_SAMPLE_FMT_FLTP, rate_, &in_layout_.layout,
+                                          format, sample_rate, 0, nullptr);
         e < 0)
       fail(fmt::format("cannot resample: {}", error_text(e)));
     resampler_.reset(resampler);
@@ -133,7 +138,7 @@ class TrackDecoder {
       // A track whose channels, sample format or rate change (clips joined end to end): what the
       // last resampler holds goes out, and a new one takes the frames from here.
       if (frame->format != in_format_ || frame->sample_rate != in_rate_ ||
-          av_channel_layout_compare(&frame->ch_layout, &in_layout_) != 0) {
+          av_channel_layout_compare(&frame->ch_layout, &in_layout_.layout) != 0) {
         convert(nullptr, 0, out);
         origin_ = static_cast<std::int64_t>(out.samples.size());
         open_resampler(frame->ch_layout, static_cast<AVSampleFormat>(frame->format), frame->sample_rate);
@@ -142,9 +147,10 @@ class TrackDecoder {
       // began, in libswresample's units of 1 / (input rate × output rate) seconds.
       const std::int64_t pts = frame->best_effort_timestamp;
       const std::int64_t units_per_tick = static_cast<std::int64_t>(time_base_.num) * in_rate_ * rate_;
-      swr_next_pts(resampler_.get(), pts == AV_NOPTS_VALUE ? INT64_MIN
-                                                           : av_rescale(pts - first_pts_, units_per_tick, time_base_.den) -
-                                                                 origin_ * in_rate_);
+      swr_next_pts(resampler_.get(),
+                   pts == AV_NOPTS_VALUE
+                       ? INT64_MIN
+                       : av_rescale(pts - first_pts_, units_per_tick, time_base_.den) - origin_ * in_rate_);
       convert(const_cast<const std::uint8_t**>(frame->extended_data), frame->nb_samples, out);
       av_frame_unref(frame);
     }
@@ -175,7 +181,7 @@ class TrackDecoder {
   ffmpeg::Codec codec_;
   std::unique_ptr<SwrContext, ResamplerFreer> resampler_;
   // What the resampler takes, and the output sample its output began at.
-  AVChannelLayout in_layout_{};
+  OwnedLayout in_layout_;
   AVSampleFormat in_format_ = AV_SAMPLE_FMT_NONE;
   int in_rate_ = 0;
   std::int64_t origin_ = 0;
