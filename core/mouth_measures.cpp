@@ -10,8 +10,9 @@ namespace lipdrive {
 MouthReference mouth_reference(const MorphableModel& model, const Eigen::VectorXf& identity,
                                std::span<const double> rest) {
   // The model-space measures read these landmarks; one unmapped would make them NaN on every frame.
-  for (const int landmark : {ibug::kNoseTip, ibug::kRightEyeInner, ibug::kLeftEyeInner, ibug::kOuterLipTop,
-                             ibug::kInnerCornerRight, ibug::kInnerLipTop, ibug::kInnerCornerLeft, ibug::kInnerLipBottom}) {
+  for (const int landmark :
+       {ibug::kNoseTip, ibug::kRightEyeInner, ibug::kLeftEyeInner, ibug::kOuterLipTop, ibug::kInnerCornerRight,
+        ibug::kInnerLipTop, ibug::kInnerCornerLeft, ibug::kInnerLipBottom}) {
     const int mapped = model.landmark_vertex[landmark];
     if (mapped < 0 || mapped >= model.num_vertices())
       throw std::invalid_argument("the model does not map landmark " + std::to_string(landmark) +

@@ -66,8 +66,8 @@ bool VoiceActivity::step(float level_db) {
   window_count_ = std::min(window_count_ + 1, settings_.floor_frames);
   // The quantile by the nearest rank (core/statistics.hpp) over a copy: the window keeps its order.
   std::copy_n(window_.begin(), window_count_, sorted_.begin());
-  floor_ = static_cast<float>(
-      quantile(std::span(sorted_.data(), static_cast<std::size_t>(window_count_)), floor_quantile_));
+  floor_ =
+      static_cast<float>(quantile(std::span(sorted_.data(), static_cast<std::size_t>(window_count_)), floor_quantile_));
   return end_run(level >= floor_ + settings_.margin_db);
 }
 

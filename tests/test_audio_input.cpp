@@ -328,11 +328,12 @@ TEST(AudioFile, ATrackWhoseChannelsChangeOnTheWayIsFollowed) {
   const test::TempDir dir;
   const auto mp3 = [&](const char* name, int hz, int channels) {
     const fs::path file = dir.path() / name;
-    EXPECT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -f lavfi -i sine=f={}:d=1:r=44100 -ac {} -c:a libmp3lame "
-                                            "-id3v2_version 0 -write_xing 0 {}",
-                                            hz, channels, file.string()))
-                  .exit_code,
-              0);
+    EXPECT_EQ(
+        test::run_command(fmt::format("ffmpeg -v error -y -f lavfi -i sine=f={}:d=1:r=44100 -ac {} -c:a libmp3lame "
+                                      "-id3v2_version 0 -write_xing 0 {}",
+                                      hz, channels, file.string()))
+            .exit_code,
+        0);
     return file;
   };
   const fs::path stereo = mp3("stereo.mp3", 440, 2), mono = mp3("mono.mp3", 880, 1);

@@ -40,8 +40,8 @@ std::string ClockTimecode::describe() const {
 LtcTimecode::LtcTimecode(std::unique_ptr<AudioSource> input, TimecodeRate rate, int realtime_priority)
     : TimecodeSource(rate),
       decoder_(input->sample_rate(), frame_rate(rate).fps()),
-      listener_(std::move(input), "lipdrive-ltc", realtime_priority,
-                [this](const AudioBlock& block) { hear(block); }) {}
+      listener_(std::move(input), "lipdrive-ltc", realtime_priority, [this](const AudioBlock& block) { hear(block); }) {
+}
 
 void LtcTimecode::hear(const AudioBlock& block) {
   decoder_.write({block.samples.data(), static_cast<std::size_t>(block.frames)}, block.sample_rate,
