@@ -277,7 +277,7 @@ void print_stats(const StageTimes& times, std::size_t frames, double seconds) {
 /// --config (or the defaults), with the options given on top.
 Config config_for(const ProcessOptions& options) {
   Config config;  // the defaults
-  if (!options.config.empty()) config = load_config(options.config);
+  if (!options.config.empty()) config = load_config(options.config, ConfigUse::kOffline);
   if (!options.model.empty()) config.model.file = options.model;
   if (!options.landmark_set.empty()) config.model.landmark_set = *parse_landmark_set(options.landmark_set);
   if (!options.predictor.empty()) config.tracker.predictor = options.predictor;
