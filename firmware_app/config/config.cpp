@@ -263,6 +263,7 @@ void read_side_camera(Section side, Config& config, bool check_devices) {
   config.side_facing = facing == "right" ? ProfileFacing::kRight : ProfileFacing::kLeft;
   Config::Camera camera;
   read_camera(side, camera, enabled && check_devices);
+  config.side_rotation = camera.rotation;
   if (enabled) config.side_camera = camera;
 }
 

@@ -141,7 +141,9 @@ struct Config {
   } camera;
 
   std::optional<Camera> side_camera;  // [side_camera] when enabled
+  /// [side_camera]'s, enabled or not: `process --side` reads a side recording with them too.
   ProfileFacing side_facing = ProfileFacing::kRight;
+  Rotation side_rotation = Rotation::k0;
 
   struct Recording {
     std::filesystem::path dir = "/var/lib/lipdrive/takes";
