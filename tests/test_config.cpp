@@ -220,6 +220,11 @@ TEST_F(ConfigTest, VoiceKeysLoadAndMistakesNameTheKey) {
   EXPECT_THAT(error(), HasSubstr("key voice.input: \"sim\" plays the clip's sound at its own rate"));
 }
 
+TEST_F(ConfigTest, AnEmptyRecordingFolderIsRefused) {
+  write("", "[recording]\ndir = \"\"");
+  EXPECT_EQ(error(), file_.string() + ": key recording.dir: must name the folder takes are written to");
+}
+
 TEST_F(ConfigTest, SyntaxErrorsNameTheLine) {
   write_text("[camera]\nfps = = 3\n");
   EXPECT_THAT(error(), HasSubstr(file_.string() + ":2:"));

@@ -270,6 +270,8 @@ void read_side_camera(Section side, Config& config, bool check_devices) {
 void read_recording(Section recording, Config& config) {
   Config::Recording& r = config.recording;
   r.dir = recording.string("dir", r.dir.string());
+  // An empty path is the working directory, which a service does not choose.
+  if (r.dir.empty()) recording.fail("dir", "must name the folder takes are written to");
   r.start = recording.boolean("start", r.start);
   r.flush_interval_ms = recording.integer("flush_interval_ms", r.flush_interval_ms, 10, 60'000);
   recording.reject_unknown_keys();
