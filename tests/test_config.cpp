@@ -364,6 +364,18 @@ TEST_F(ConfigTest, ReferenceFileIsValid) {
   EXPECT_THAT(run.output, HasSubstr(reference.string() + ": ok"));
 }
 
+TEST_F(ConfigTest, ReferenceFileSaysItTurnsTheMonitorOn) {
+  // A file without [monitor] serves no page; the shipped file serves it, and says it departs from the default.
+  write("");
+  EXPECT_FALSE(load_config(file_).monitor.enabled);
+  std::ifstream in(fs::path(test::kSourceDir) / "config" / "lipdrive.toml");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string monitor = text.substr(text.find("\n[monitor]\n"));
+  EXPECT_THAT(monitor.substr(0, monitor.find("\nenabled = ")),
+              HasSubstr("# Off by default (a file without this key serves no page); this file turns it on"));
+  EXPECT_THAT(monitor, HasSubstr("\nenabled = true\n"));
+}
+
 TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   write("fps = 500");
   const test::CommandRun run = run_lipdrive("check-config " + file_.string());
