@@ -156,6 +156,36 @@ TEST_F(ConfigTest, MissingFilesAreNamed) {
   EXPECT_THAT(error(), HasSubstr("key camera.device: no such device: /dev/video-lipdrive-missing"));
 }
 
+TEST_F(ConfigTest, CamerasMustExistOnlyWhereTheyAreUsed) {
+  // The rig's file: its cameras are not on the machine that processes recordings.
+  const fs::path missing = dir_ / "missing.avi";
+  write_text(
+      fmt::format("[model]\nfile = \"{}\"\n[camera]\ntype = \"v4l2\"\ndevice = \"/dev/video-lipdrive-missing\"\n"
+                  "[side_camera]\nenabled = true\ninput = \"{}\"\n",
+                  kModel.string(), missing.string()));
+  for (const ConfigUse use : {ConfigUse::kOffline, ConfigUse::kCalibrateInput})
+    EXPECT_EQ(load_config(file_, use).camera.v4l2.device, "/dev/video-lipdrive-missing");
+  for (const ConfigUse use : {ConfigUse::kDaemon, ConfigUse::kCalibrateCamera}) {
+    try {
+      load_config(file_, use);
+      ADD_FAILURE() << "the daemon and calibrate on the camera need the camera";
+    } catch (const ConfigError& e) {
+      EXPECT_THAT(e.what(), HasSubstr("key camera.device: no such device: /dev/video-lipdrive-missing"));
+    }
+  }
+  write("", fmt::format("[side_camera]\nenabled = true\ninput = \"{}\"", missing.string()));
+  EXPECT_THAT(error(), HasSubstr("key side_camera.input: no such file or folder: " + missing.string()));
+  EXPECT_TRUE(load_config(file_, ConfigUse::kOffline).side_camera);
+  // Every other key is checked in every use.
+  write("type = \"v4l2\"\ndevice = \"/dev/video-lipdrive-missing\"\nfps = 500");
+  try {
+    load_config(file_, ConfigUse::kOffline);
+    ADD_FAILURE() << "an offline use still checks the keys";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("key camera.fps: must be between 1 and 240, got 500"));
+  }
+}
+
 TEST_F(ConfigTest, VoiceKeysLoadAndMistakesNameTheKey) {
   const fs::path model = dir_ / "performer.lpv";
   std::ofstream(model) << "not read when the configuration loads";
@@ -188,6 +218,11 @@ TEST_F(ConfigTest, VoiceKeysLoadAndMistakesNameTheKey) {
   // The clip's sound plays at its own rate: a replay at another rate cannot keep in step.
   write("replay_fps = 60", fmt::format("[voice]\nenabled = true\nmodel = \"{}\"", model.string()));
   EXPECT_THAT(error(), HasSubstr("key voice.input: \"sim\" plays the clip's sound at its own rate"));
+}
+
+TEST_F(ConfigTest, AnEmptyRecordingFolderIsRefused) {
+  write("", "[recording]\ndir = \"\"");
+  EXPECT_EQ(error(), file_.string() + ": key recording.dir: must name the folder takes are written to");
 }
 
 TEST_F(ConfigTest, SyntaxErrorsNameTheLine) {
@@ -329,6 +364,18 @@ TEST_F(ConfigTest, ReferenceFileIsValid) {
   EXPECT_THAT(run.output, HasSubstr(reference.string() + ": ok"));
 }
 
+TEST_F(ConfigTest, ReferenceFileSaysItTurnsTheMonitorOn) {
+  // A file without [monitor] serves no page; the shipped file serves it, and says it departs from the default.
+  write("");
+  EXPECT_FALSE(load_config(file_).monitor.enabled);
+  std::ifstream in(fs::path(test::kSourceDir) / "config" / "lipdrive.toml");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string monitor = text.substr(text.find("\n[monitor]\n"));
+  EXPECT_THAT(monitor.substr(0, monitor.find("\nenabled = ")),
+              HasSubstr("# Off by default (a file without this key serves no page); this file turns it on"));
+  EXPECT_THAT(monitor, HasSubstr("\nenabled = true\n"));
+}
+
 TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   write("fps = 500");
   const test::CommandRun run = run_lipdrive("check-config " + file_.string());
@@ -359,6 +406,22 @@ TEST_F(ConfigTest, CalibrateWritesTheProfileTheConfigurationNames) {
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(fs::exists(dir_ / "alice.toml"));
   EXPECT_EQ(load_config(file_).performer.name, "alice") << "the profile it names now exists";
+}
+
+TEST_F(ConfigTest, OfflineCommandsTakeTheRigsConfiguration) {
+  // A camera this machine does not have: the recordings stand in for it.
+  write("type = \"v4l2\"\ndevice = \"/dev/video-lipdrive-missing\"");
+  const test::CommandRun process = run_lipdrive(
+      fmt::format("process {} --config {} --out {}", kClip.string(), file_.string(), (dir_ / "measures.csv").string()));
+  EXPECT_EQ(process.exit_code, 0) << process.output;
+  const test::CommandRun calibrate =
+      run_lipdrive(fmt::format("calibrate --config {} --performer bob --input {} --out {}", file_.string(),
+                               kClip.string(), (dir_ / "bob.toml").string()));
+  EXPECT_EQ(calibrate.exit_code, 0) << calibrate.output;
+  const test::CommandRun live = run_lipdrive(
+      fmt::format("calibrate --config {} --performer bob --out {}", file_.string(), (dir_ / "bob.toml").string()));
+  EXPECT_EQ(live.exit_code, 78) << live.output;
+  EXPECT_THAT(live.output, HasSubstr("key camera.device: no such device: /dev/video-lipdrive-missing"));
 }
 
 TEST_F(ConfigTest, GpioInputBiasIsAutomaticUnlessNamed) {

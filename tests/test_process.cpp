@@ -311,30 +311,53 @@ TEST_F(ProcessTest, ASideRecordingOnItsSideIsTurnedUprightFirst) {
   LIPDRIVE_REQUIRE_BUILT(side);
   // The side clip's first 60 frames as images, upright and turned a quarter turn anticlockwise.
   cv::VideoCapture capture(side.string());
-  const fs::path upright = dir_ / "upright", sideways = dir_ / "sideways";
-  fs::create_directories(upright);
-  fs::create_directories(sideways);
+  const fs::path upright = dir_ / "upright", sideways = dir_ / "sideways", mirrored = dir_ / "mirrored";
+  for (const fs::path& folder : {upright, sideways, mirrored}) fs::create_directories(folder);
   cv::Mat bgr, turned;
   for (int i = 0; i < 60 && capture.read(bgr); ++i) {
     const std::string name = fmt::format("side{:03}.png", i);
     cv::imwrite((upright / name).string(), bgr);
     cv::rotate(bgr, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
     cv::imwrite((sideways / name).string(), turned);
+    cv::flip(bgr, turned, 1);
+    cv::imwrite((mirrored / name).string(), turned);
   }
-  const fs::path expected = dir_ / "upright.csv", got = dir_ / "turned.csv";
-  for (const auto& [args, out] : {std::pair{"--side " + upright.string(), expected},
-                                  std::pair{"--side " + sideways.string() + " --side-rotate 90", got}}) {
+  // The rig's file turns and faces the side view as its side camera would, enabled for the daemon or not
+  // (the face looking left in the mirrored view).
+  const fs::path turned_config = dir_ / "turned.toml", left_config = dir_ / "left.toml";
+  std::ofstream(turned_config) << "[side_camera]\nrotation = 90\n";
+  std::ofstream(left_config) << "[side_camera]\nfacing = \"left\"\n";
+  const fs::path expected = dir_ / "upright.csv", got = dir_ / "turned.csv", configured = dir_ / "configured.csv",
+                 left = dir_ / "left.csv", right = dir_ / "right.csv";
+  for (const auto& [args, out] :
+       {std::pair{"--side " + upright.string(), expected},
+        std::pair{"--side " + sideways.string() + " --side-rotate 90", got},
+        std::pair{"--side " + sideways.string() + " --config " + turned_config.string(), configured},
+        std::pair{"--side " + mirrored.string() + " --config " + left_config.string(), left},
+        std::pair{"--side " + upright.string() + " --config " + left_config.string() + " --side-facing right",
+                  right}}) {
     const ProcessRun run = run_process(fmt::format("{} {} --out {}", front.string(), args, out.string()), dir_);
     ASSERT_EQ(run.exit_code, 0) << args << ": " << run.stderr_text;
   }
   const std::vector<double> want = numeric_column(read_csv_table(expected), "protrusion_side");
-  const std::vector<double> have = numeric_column(read_csv_table(got), "protrusion_side");
   ASSERT_GT(std::count_if(want.begin(), want.end(), [](double p) { return std::isfinite(p); }), 20);
+  for (const fs::path& out : {got, configured, right}) {
+    SCOPED_TRACE(out.filename().string());
+    const std::vector<double> have = numeric_column(read_csv_table(out), "protrusion_side");
+    ASSERT_EQ(have.size(), want.size());
+    for (std::size_t i = 0; i < want.size(); ++i) {
+      ASSERT_EQ(std::isfinite(have[i]), std::isfinite(want[i])) << "row " << i;
+      if (std::isfinite(want[i])) {
+        EXPECT_EQ(have[i], want[i]) << "row " << i;
+      }
+    }
+  }
+  const std::vector<double> have = numeric_column(read_csv_table(left), "protrusion_side");
   ASSERT_EQ(have.size(), want.size());
   for (std::size_t i = 0; i < want.size(); ++i) {
-    ASSERT_EQ(std::isfinite(have[i]), std::isfinite(want[i])) << "row " << i;
+    ASSERT_EQ(std::isfinite(have[i]), std::isfinite(want[i])) << "mirrored, row " << i;
     if (std::isfinite(want[i])) {
-      EXPECT_EQ(have[i], want[i]) << "row " << i;
+      EXPECT_NEAR(have[i], want[i], 1e-9) << "mirrored, row " << i;
     }
   }
 }

@@ -115,8 +115,9 @@ PerformerIdentity fit_performer_identity(const Config& config, LoadedFiles& file
 }
 
 void run_calibrate(const CalibrateOptions& options) {
-  // The profile the configuration names may be the one this writes.
-  const Config config = load_config(options.config, ProfileCheck::kMayBeMissing);
+  // The profile the configuration names may be the one this writes; a recording stands in for the camera.
+  const Config config =
+      load_config(options.config, options.input.empty() ? ConfigUse::kCalibrateCamera : ConfigUse::kCalibrateInput);
   const std::filesystem::path out =
       options.out.empty() ? profile_path(config.performer.profiles_dir, options.performer) : options.out;
   const int neutral_frames = options.neutral_frames > 0 ? options.neutral_frames : config.performer.neutral_frames;

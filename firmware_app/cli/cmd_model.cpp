@@ -291,7 +291,15 @@ void add_build_command(CLI::App& model) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--variance", args->options.variance_target,
                   "Fraction of the variance to keep when --components is 0")
-      ->check(CLI::Range(0.0, 1.0))
+      // build_model's range, (0, 1]: none of the variance keeps no component.
+      ->check(CLI::Validator(
+          [](std::string& value) {
+            double fraction = 0;
+            return CLI::detail::lexical_cast(value, fraction) && fraction > 0 && fraction <= 1
+                       ? std::string()
+                       : "must be more than 0 and at most 1, got " + value;
+          },
+          "FLOAT in (0 - 1]"))
       ->capture_default_str();
   cmd->callback([args] { run_build(*args); });
 }

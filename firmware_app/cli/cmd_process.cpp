@@ -58,7 +58,7 @@ struct ProcessOptions {
   bool include_landmarks = false;
   bool stats = false;
   std::filesystem::path side;         // side-camera recording, frame for frame with the input
-  std::string side_facing = "right";  // where the face looks in the side view
+  std::optional<std::string> side_facing;  // where the face looks in the side view; else [side_camera] facing
   int side_neutral_frames = 15;       // its first frames: the neutral pose the reference is fixed on
   std::string timecode;               // the first frame's timecode: adds the timecode column
   double timecode_fps = 25;
@@ -117,10 +117,8 @@ std::optional<std::pair<std::int32_t, TimecodeRate>> timecode_start(const Proces
 class SideInput {
  public:
   /// The recording's frames turned by `rotation` first, as the side camera's are.
-  SideInput(const ProcessOptions& options, Rotation rotation)
-      : meter_(SideProfileSettings{.facing =
-                                       options.side_facing == "left" ? ProfileFacing::kLeft : ProfileFacing::kRight}),
-        camera_(open(options.side, rotation)) {
+  SideInput(const ProcessOptions& options, ProfileFacing facing, Rotation rotation)
+      : meter_(SideProfileSettings{.facing = facing}), camera_(open(options.side, rotation)) {
     std::vector<cv::Mat> neutral;
     const std::unique_ptr<FrameSource> first = open(options.side, rotation);
     Frame frame;
@@ -277,7 +275,7 @@ void print_stats(const StageTimes& times, std::size_t frames, double seconds) {
 /// --config (or the defaults), with the options given on top.
 Config config_for(const ProcessOptions& options) {
   Config config;  // the defaults
-  if (!options.config.empty()) config = load_config(options.config);
+  if (!options.config.empty()) config = load_config(options.config, ConfigUse::kOffline);
   if (!options.model.empty()) config.model.file = options.model;
   if (!options.landmark_set.empty()) config.model.landmark_set = *parse_landmark_set(options.landmark_set);
   if (!options.predictor.empty()) config.tracker.predictor = options.predictor;
@@ -296,9 +294,12 @@ void run_process(const ProcessOptions& options) {
   const Rotation rotation = rotation_of(options.rotate, config.camera.rotation);
   fit_take_identity(options.input, rotation, *processor);
   std::optional<SideInput> side;
-  if (!options.side.empty())
-    side.emplace(options,
-                 rotation_of(options.side_rotate, config.side_camera ? config.side_camera->rotation : Rotation::k0));
+  if (!options.side.empty()) {
+    const ProfileFacing facing = !options.side_facing             ? config.side_facing
+                                 : *options.side_facing == "left" ? ProfileFacing::kLeft
+                                                                  : ProfileFacing::kRight;
+    side.emplace(options, facing, rotation_of(options.side_rotate, config.side_rotation));
+  }
   std::optional<VoiceColumns> voice;
   if (!options.voice.empty()) voice.emplace(options.voice, options.input);
 
@@ -422,16 +423,16 @@ void add_process_command(CLI::App& app) {
   cmd->add_flag("--include-landmarks", options->include_landmarks, "add the tracked landmarks x0..x67,y0..y67");
   cmd->add_flag("--stats", options->stats, "print per-stage latency and frames per second on stderr");
   cmd->add_option("--side", options->side, "side-camera recording of the same take: adds protrusion_side");
-  cmd->add_option("--side-facing", options->side_facing, "where the face looks in the side view")
-      ->check(CLI::IsMember({"right", "left"}))
-      ->capture_default_str();
+  cmd->add_option("--side-facing", options->side_facing,
+                  "where the face looks in the side view; default: the --config's [side_camera] facing, else right")
+      ->check(CLI::IsMember({"right", "left"}));
   cmd->add_option("--side-neutral-frames", options->side_neutral_frames,
                   "first side frames at rest that fix the reference line")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   cmd->add_option("--side-rotate", options->side_rotate,
                   "degrees clockwise that stand the side recording's frames upright; default: the --config's "
-                  "[side_camera] rotation, else 0")
+                  "[side_camera] rotation (enabled or not), else 0")
       ->check(CLI::IsMember({0, 90, 180, 270}));
   cmd->add_option("--timecode", options->timecode,
                   "timecode of the first frame (HH:MM:SS:FF): adds a timecode column, the recording's time from it");

@@ -108,7 +108,7 @@ void add_training_options(CLI::App* cmd, TrainingOptions& o, bool sweep) {
 std::vector<VoiceRecording> load_all(const std::vector<fs::path>& inputs, const fs::path& config_file,
                                      int sample_rate) {
   Config config;  // the defaults
-  if (!config_file.empty()) config = load_config(config_file);
+  if (!config_file.empty()) config = load_config(config_file, ConfigUse::kOffline);
   const std::unique_ptr<FrameProcessor> processor = make_processor(config, load_performer(config));
   std::vector<VoiceRecording> recordings;
   for (const fs::path& input : inputs) recordings.push_back(load_voice_recording(input, sample_rate, *processor));

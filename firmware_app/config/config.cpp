@@ -210,7 +210,7 @@ void read_controls(Section controls, V4l2Controls& out) {
   controls.reject_unknown_keys();
 }
 
-void read_camera(Section camera, Config::Camera& config_camera, bool check_devices = true) {
+void read_camera(Section camera, Config::Camera& config_camera, bool check_devices) {
   const std::string type = camera.one_of("type", "sim", {"sim", "v4l2", "libcamera"});
   config_camera.type = type == "sim"    ? Config::Camera::Type::kSim
                        : type == "v4l2" ? Config::Camera::Type::kV4l2
@@ -257,18 +257,21 @@ void read_camera(Section camera, Config::Camera& config_camera, bool check_devic
 }
 
 /// [side_camera]: the keys of [camera], plus whether it is used and where the face looks.
-void read_side_camera(Section side, Config& config) {
+void read_side_camera(Section side, Config& config, bool check_devices) {
   const bool enabled = side.boolean("enabled", false);
   const std::string facing = side.one_of("facing", "right", {"right", "left"});
   config.side_facing = facing == "right" ? ProfileFacing::kRight : ProfileFacing::kLeft;
   Config::Camera camera;
-  read_camera(side, camera, enabled);
+  read_camera(side, camera, enabled && check_devices);
+  config.side_rotation = camera.rotation;
   if (enabled) config.side_camera = camera;
 }
 
 void read_recording(Section recording, Config& config) {
   Config::Recording& r = config.recording;
   r.dir = recording.string("dir", r.dir.string());
+  // An empty path is the working directory, which a service does not choose.
+  if (r.dir.empty()) recording.fail("dir", "must name the folder takes are written to");
   r.start = recording.boolean("start", r.start);
   r.flush_interval_ms = recording.integer("flush_interval_ms", r.flush_interval_ms, 10, 60'000);
   recording.reject_unknown_keys();
@@ -287,7 +290,7 @@ void read_scheduling(Section scheduling, Config& config) {
   scheduling.reject_unknown_keys();
 }
 
-void read_performer(Section performer, Config& config, ProfileCheck check) {
+void read_performer(Section performer, Config& config, bool check_profile) {
   Config::Performer& p = config.performer;
   p.name = performer.string("name", "");
   p.profiles_dir = performer.string("profiles_dir", p.profiles_dir.string());
@@ -297,8 +300,7 @@ void read_performer(Section performer, Config& config, ProfileCheck check) {
   if (p.name.empty()) return;
   try {
     const fs::path profile = profile_path(p.profiles_dir, p.name);
-    if (check == ProfileCheck::kMustExist)
-      existing(performer, "name", profile, "performer profile (run `lipdrive calibrate`)");
+    if (check_profile) existing(performer, "name", profile, "performer profile (run `lipdrive calibrate`)");
   } catch (const std::invalid_argument& e) {
     performer.fail("name", e.what());
   }
@@ -639,7 +641,7 @@ void read_outputs(Section outputs, Config& config) {
 
 }  // namespace
 
-Config load_config(const fs::path& file, ProfileCheck profile) {
+Config load_config(const fs::path& file, ConfigUse use) {
   const std::string name = file.string();
   // toml++ reads a directory as an empty file: every default, silently. A missing file is
   // reported by the parser below.
@@ -660,12 +662,16 @@ Config load_config(const fs::path& file, ProfileCheck profile) {
   read_log(top.table("log"), config);
   read_model(top.table("model"), config);
   read_tracker(top.table("tracker"), config);
-  read_camera(top.table("camera"), config.camera);
-  read_side_camera(top.table("side_camera"), config);
+  // Recordings stand in for the cameras: a file written for the rig loads anywhere.
+  const bool check_devices = use == ConfigUse::kDaemon || use == ConfigUse::kCalibrateCamera;
+  read_camera(top.table("camera"), config.camera, check_devices);
+  read_side_camera(top.table("side_camera"), config, check_devices);
   read_recording(top.table("recording"), config);
   read_status(top.table("status"), config);
   read_scheduling(top.table("scheduling"), config);
-  read_performer(top.table("performer"), config, profile);
+  // The profile calibrate writes need not exist yet.
+  const bool check_profile = use == ConfigUse::kDaemon || use == ConfigUse::kOffline;
+  read_performer(top.table("performer"), config, check_profile);
   read_safety(top.table("safety"), config);
   read_channels(top.tables("channels"), config);
   read_outputs(top.table("outputs"), config);

@@ -2,7 +2,8 @@
 //
 // Everything is validated when the file is loaded, before anything starts: unknown keys,
 // wrong types, out-of-range values and missing files (model, predictor, sim input, v4l2
-// device) all throw ConfigError, so a typo never silently falls back to a default.
+// device; the last two only where the cameras are used, ConfigUse) all throw ConfigError,
+// so a typo never silently falls back to a default.
 #pragma once
 
 #include "core/dmx_footprint.hpp"
@@ -140,7 +141,9 @@ struct Config {
   } camera;
 
   std::optional<Camera> side_camera;  // [side_camera] when enabled
+  /// [side_camera]'s, enabled or not: `process --side` reads a side recording with them too.
   ProfileFacing side_facing = ProfileFacing::kRight;
+  Rotation side_rotation = Rotation::k0;
 
   struct Recording {
     std::filesystem::path dir = "/var/lib/lipdrive/takes";
@@ -221,12 +224,19 @@ struct Config {
   } outputs;
 };
 
-/// Whether the profile [performer] names must exist when the configuration loads: `lipdrive
-/// calibrate` is what writes it.
-enum class ProfileCheck { kMustExist, kMayBeMissing };
+/// What the configuration is loaded for, which decides what must exist when it loads: the
+/// cameras' sources (v4l2 devices, sim clips) only where the cameras are used, the profile
+/// [performer] names except where `lipdrive calibrate` writes it. Every other key is checked
+/// in every use.
+enum class ConfigUse {
+  kDaemon,           // `run`, `check-config`: the cameras and the profile
+  kCalibrateCamera,  // `calibrate` on the configured camera: the cameras
+  kCalibrateInput,   // `calibrate --input`: a recording stands in for the camera
+  kOffline,          // `process`, `voice train`, `voice eval`: recordings; the profile
+};
 
 /// Reads and validates a configuration file. Throws ConfigError naming the file, the key
 /// and the reason.
-Config load_config(const std::filesystem::path& file, ProfileCheck profile = ProfileCheck::kMustExist);
+Config load_config(const std::filesystem::path& file, ConfigUse use = ConfigUse::kDaemon);
 
 }  // namespace lipdrive
