@@ -5,6 +5,7 @@
 #include "drivers/osc_receiver.hpp"
 #include "drivers/osc_sender.hpp"
 #include "drivers/udp_socket.hpp"
+#include "firmware_app/outputs/osc_output.hpp"
 #include "osc_peers.hpp"
 #include "serial_peers.hpp"
 
@@ -102,6 +103,22 @@ TEST(OscSender, OneBundlePerSendWithItsTimeTag) {
     EXPECT_EQ(b.messages[2].text, i % 2 ? "10:00:00:01" : "10:00:00:0 ");
   }
   EXPECT_TRUE(capture.loose_messages().empty());
+}
+
+TEST(OscOutput, ASignalThatIsNotANumberGoesOutAsZero) {
+  test::OscCapture capture;
+  const ChannelSpec jaw{.name = "jaw", .signal = Signal::kOpen, .out_min = 0, .out_max = 1000, .neutral = 0};
+  OscOutput output({.port = capture.port()}, {&jaw, 1});
+  DriveFrame frame;
+  frame.channel_count = 1;
+  frame.signals = signals(std::nanf(""), INFINITY, 0.1f);
+  frame.signals[arkit_signal(17)] = std::nanf("");  // jawOpen
+  output.publish(frame);
+  ASSERT_TRUE(test::eventually([&] { return !capture.bundles().empty(); }, 3s));
+  const auto bundle = capture.bundles().front();
+  ASSERT_GT(bundle.messages.size(), 50u);
+  for (const auto& message : bundle.messages)
+    EXPECT_TRUE(std::isfinite(message.number)) << message.address;
 }
 
 // The bytes a prebuilt bundle carries are the bytes liblo serialises for a bundle built afresh

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 
 namespace lipdrive {
@@ -51,9 +52,13 @@ void OscOutput::fill(OscBundle& bundle, const DriveFrame& frame, bool with_timec
   for (const int index : channel_indices_)
     bundle.set(i++, static_cast<float>(frame.values[static_cast<std::size_t>(index)]));
   bundle.set(i++, std::int32_t{(frame.status & kStatusTracking) != 0});
+  // The signals describe the face as measured: one the frame could not measure (NaN) goes out
+  // as 0, never as a NaN a receiver would pass on.
+  const auto finite = [](float value) { return std::isfinite(value) ? value : 0.0f; };
   const osc::FaceOscGestures gestures = osc::face_osc_gestures(frame.signals);
-  for (const float gesture : {gestures.mouth_width, gestures.mouth_height, gestures.jaw}) bundle.set(i++, gesture);
-  for (const float weight : frame.signals.arkit()) bundle.set(i++, weight);
+  for (const float gesture : {gestures.mouth_width, gestures.mouth_height, gestures.jaw})
+    bundle.set(i++, finite(gesture));
+  for (const float weight : frame.signals.arkit()) bundle.set(i++, finite(weight));
 }
 
 bool OscOutput::send(const DriveFrame& frame) {
