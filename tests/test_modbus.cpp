@@ -289,6 +289,15 @@ class ModbusServerWithBystander : public ::testing::Test {
   const ModbusContext bystander = tcp_master(output.port());
 };
 
+TEST_F(ModbusServerWithBystander, ReservedRegistersReadZeroWhateverIsWritten) {
+  for (int reg = map::kRecord + 1; reg < map::kFirstOverride; ++reg) {
+    ASSERT_EQ(modbus_write_register(bystander.get(), reg, 0x1234), 1) << modbus_strerror(errno);
+    std::uint16_t value = 0xFFFF;
+    ASSERT_EQ(modbus_read_registers(bystander.get(), reg, 1, &value), 1) << modbus_strerror(errno);
+    EXPECT_EQ(value, 0) << "holding register " << reg;
+  }
+}
+
 TEST_F(ModbusServerWithBystander, GarbageAndBadRequestsGetExceptionsAndOthersAreStillServed) {
   // Function 0x55 does not exist: exception 1 (illegal function), same transaction id.
   RawConnection raw(output.port());

@@ -67,6 +67,8 @@ void ModbusServerOutput::refresh(std::span<std::uint16_t> input, std::span<std::
   holding[kOutputEnable] = control_.outputs_enabled.load(std::memory_order_relaxed) ? 1 : 0;
   holding[kCalibrate] = 0;
   holding[kRecord] = (frame.status & kStatusRecording) ? 1 : 0;
+  // The reserved registers read 0 whatever was written to them (docs/modbus-register-map.md).
+  for (int reg = kRecord + 1; reg < kFirstOverride; ++reg) holding[static_cast<std::size_t>(reg)] = 0;
   for (int i = 0; i < channel_count_; ++i) {
     const double value = control_.overrides[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
     holding[static_cast<std::size_t>(kFirstOverride + i)] = std::isnan(value) ? kNoOverride : to_register(value);
