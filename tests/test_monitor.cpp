@@ -457,6 +457,18 @@ TEST(MonitorHttp, CommandsAreRefusedWithoutTheTokenAndCarriedOutWithIt) {
   EXPECT_TRUE(s["status"]["outputs_enabled"].get<bool>());
   EXPECT_TRUE(s["commands"]["enable_switch"].get<bool>()) << "no enable switch configured";
   EXPECT_EQ(s["monitor"]["refused"], 4);
+  // A body sent in chunks (no length for the payload limit to refuse it by) is refused before
+  // it is read, token or not.
+  const httplib::Result chunked = c.Post(
+      "/api/calibrate",
+      [](std::size_t offset, httplib::DataSink& sink) {
+        if (offset == 0) return sink.write("abcd", 4);
+        sink.done();
+        return true;
+      },
+      "text/plain");
+  ASSERT_TRUE(chunked);
+  EXPECT_EQ(chunked->status, 413);
 
   // Calibrate: the request is counted at once, the neutral capture completes on tracked frames.
   EXPECT_EQ(post(c, "/api/calibrate", kToken), 200);

@@ -154,6 +154,7 @@ Monitor::Monitor(Config::Monitor settings, MonitorSources sources, std::string t
     ::setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   });
   server_->set_keep_alive_max_count(1);  // one request per connection: a worker is never held idle
+  server_->set_keep_alive_timeout(kIoTimeoutS);  // nor for longer than a read waits for its request
   server_->set_read_timeout(kIoTimeoutS, 0);
   server_->set_write_timeout(kIoTimeoutS, 0);
   server_->set_payload_max_length(1024);  // commands carry no body
@@ -222,8 +223,16 @@ int Monitor::authorise(const std::string& authorization) {
 
 void Monitor::add_routes() {
   using httplib::Request, httplib::Response;
-  server_->set_pre_routing_handler([this](const Request&, Response& response) {
+  server_->set_pre_routing_handler([this](const Request& request, Response& response) {
     counters_.requests.fetch_add(1, std::memory_order_relaxed);
+    // The commands take no body. A chunked one has no length for the payload limit to refuse it
+    // by, and httplib would read all of it before any handler (the token's check) runs.
+    if (request.has_header("Transfer-Encoding")) {
+      response.status = 413;
+      response.set_header("Connection", "close");
+      response.set_content("the monitor takes no request body\n", "text/plain");
+      return httplib::Server::HandlerResponse::Handled;
+    }
     if (std::this_thread::get_id() != listener_id_.load()) return httplib::Server::HandlerResponse::Unhandled;
     counters_.turned_away.fetch_add(1, std::memory_order_relaxed);
     response.status = 503;
