@@ -181,6 +181,66 @@ port = {}
               static_cast<unsigned long long>(clients.reads()));
 }
 
+TEST_F(ReloadTest, WhatTheOperatorSetOutlivesAReload) {
+  // The drive switched off, an override on the open channel, a take being recorded and the
+  // neutral captured for a performer without a profile file: after SIGHUP all of it holds.
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  const int port = test::free_port();
+  const fs::path config = dir_ / "lipdrive.toml";
+  std::ofstream(config) << test::sim_camera_at_60_fps()
+                        << fmt::format(R"([recording]
+dir = "{}"
+[[channels]]
+name = "open"
+signal = "open"
+[[outputs.modbus_server]]
+transport = "tcp"
+address = "127.0.0.1"
+port = {}
+)",
+                                       (dir_ / "takes").string(), port);
+  test::DaemonProcess daemon(config, dir_ / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:", 120s)) << daemon.log();
+  modbus_t* master = modbus_new_tcp("127.0.0.1", port);
+  ASSERT_NE(master, nullptr);
+  ASSERT_EQ(modbus_connect(master), 0) << modbus_strerror(errno);
+  const auto status = [&] {
+    std::uint16_t word = 0;
+    return modbus_read_input_registers(master, 0, 1, &word) == 1 ? word : std::uint16_t{0};
+  };
+  const auto wait_for_status = [&](std::uint16_t bits, bool set) {
+    const auto deadline = Clock::now() + 30s;
+    while (((status() & bits) == bits) != set && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+    return ((status() & bits) == bits) == set;
+  };
+  constexpr std::uint16_t kCalibrated = 1 << 1, kRecording = 1 << 4, kEnabled = 1 << 5;
+  ASSERT_EQ(modbus_write_register(master, 0, 0), 1);    // output enable off
+  ASSERT_EQ(modbus_write_register(master, 16, 700), 1);  // override channel 0
+  ASSERT_EQ(modbus_write_register(master, 2, 1), 1);    // record
+  daemon.signal(SIGUSR1);                                // capture the neutral
+  ASSERT_TRUE(wait_for_status(kRecording | kCalibrated, true)) << daemon.log();
+  ASSERT_TRUE(wait_for_status(kEnabled, false));
+  modbus_close(master);
+
+  daemon.signal(SIGHUP);
+  const auto deadline = Clock::now() + 60s;
+  while (count(daemon.log(), "running:") < 2 && Clock::now() < deadline) std::this_thread::sleep_for(5ms);
+  ASSERT_EQ(count(daemon.log(), "running:"), 2) << daemon.log();
+  ASSERT_EQ(modbus_connect(master), 0) << modbus_strerror(errno);
+  std::uint16_t holding[17] = {};
+  ASSERT_EQ(modbus_read_registers(master, 0, 17, holding), 17);
+  EXPECT_EQ(holding[0], 0) << "the drive stays off";
+  EXPECT_EQ(holding[16], 700) << "the override stays on its channel";
+  EXPECT_TRUE(wait_for_status(kRecording, true)) << "the take goes on";
+  EXPECT_TRUE(wait_for_status(kCalibrated, true)) << "the neutral captured before the reload";
+  EXPECT_FALSE(status() & kEnabled);
+  EXPECT_THAT(daemon.log(), HasSubstr("the take goes on in"));
+  modbus_close(master);
+  modbus_free(master);
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(10s), 0) << daemon.log();
+}
+
 TEST_F(ReloadTest, TheWatchdogIsFedThroughReloads) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   // The unit's WatchdogSec=2; the daemon pings at a quarter of it.

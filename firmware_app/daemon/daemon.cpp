@@ -10,6 +10,8 @@
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
 
+#include <cmath>
+#include <csignal>
 #include <cstdio>
 
 namespace lipdrive {
@@ -31,8 +33,12 @@ bool model_mismatch(const Config& config, const PerformerProfile& profile, Loade
 }  // namespace
 
 Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
-               const DaemonOptions& options, LoadedFiles& files)
+               const DaemonOptions& options, LoadedFiles& files, const OperatorState& carried)
     : config_(std::move(config)), profile_(std::move(profile)) {
+  control_.outputs_enabled.store(carried.outputs_enabled);
+  for (const auto& [name, value] : carried.overrides)
+    if (const std::optional<int> channel = find_channel(config_.channels, name))
+      control_.overrides[static_cast<std::size_t>(*channel)].store(value);
   PipelineSettings settings;
   settings.max_frames = options.max_frames;
   settings.watchdog_interval = options.watchdog_interval;
@@ -86,7 +92,11 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
     preview_ = std::make_unique<PreviewFeed>(config_.monitor.preview_fps, config_.monitor.preview_size);
     pipeline_->set_preview(*preview_);
   }
-  if (options.record || config_.recording.start) recorder_->start(take_file_name(config_.recording.dir));
+  if (options.record || config_.recording.start || carried.recording) {
+    const std::string take = take_file_name(config_.recording.dir);
+    recorder_->start(take);
+    if (carried.recording) spdlog::info("the take goes on in {}", take);
+  }
   pipeline_->start();
   spdlog::info("running: {}, model {}, landmark set {}, predictor {}", pipeline_->describe_source(),
                config_.model.file.string(), landmark_set_name(config_.model.landmark_set),
@@ -135,6 +145,16 @@ void Daemon::poll() {
       spdlog::error("the re-centred profile was not saved: {}", e.what());
     }
   }
+}
+
+OperatorState Daemon::operator_state() const {
+  OperatorState state;
+  state.outputs_enabled = control_.outputs_enabled.load();
+  for (std::size_t i = 0; i < config_.channels.size(); ++i)
+    if (const double value = control_.overrides[i].load(); !std::isnan(value))
+      state.overrides.emplace_back(config_.channels[i].name, value);
+  state.recording = recorder_->recording();
+  return state;
 }
 
 void Daemon::report_status() {
@@ -210,30 +230,40 @@ void Daemon::print_stats() const {
 void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options,
             LoadedFiles& files) {
   sd_notify(0, "RELOADING=1");
+  daemon->poll();  // a calibration that just finished is saved before the profile is read again
   Config config;
   PerformerProfile profile;
   std::unique_ptr<FrameProcessor> processor;
   try {
     config = load_config(file);
-    profile = load_performer(config);
+    // A performer without a name has no profile file: the running daemon's calibration is theirs.
+    profile = config.performer.name.empty() && daemon->config().performer.name.empty() ? daemon->profile()
+                                                                                         : load_performer(config);
     processor = make_processor(config, files, profile);
   } catch (const std::exception& e) {
     spdlog::error("reload failed, keeping the running configuration: {}", e.what());
     sd_notify(0, "READY=1");
     return;
   }
+  // Asked to stop while the new processor was built (a predictor parsed on a slow board): the
+  // running daemon stops, as it would have, instead of a new one starting first.
+  sigset_t pending;
+  sigpending(&pending);
+  if (sigismember(&pending, SIGTERM) || sigismember(&pending, SIGINT)) return;
   spdlog::info("{}: reloaded; restarting the pipeline", file.string());
   Config previous = daemon->config();
   PerformerProfile previous_profile = daemon->profile();
+  const OperatorState carried = daemon->operator_state();
   daemon.reset();
   try {
     spdlog::set_level(config.log_level);
-    daemon = std::make_unique<Daemon>(std::move(config), std::move(profile), std::move(processor), options, files);
+    daemon = std::make_unique<Daemon>(std::move(config), std::move(profile), std::move(processor), options, files,
+                                      carried);
   } catch (const std::exception& e) {
     spdlog::error("the new configuration does not start, going back to the previous one: {}", e.what());
     spdlog::set_level(previous.log_level);
     daemon = std::make_unique<Daemon>(previous, previous_profile, make_processor(previous, files, previous_profile),
-                                      options, files);
+                                      options, files, carried);
   }
   sd_notify(0, "READY=1");
 }

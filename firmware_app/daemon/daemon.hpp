@@ -30,6 +30,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lipdrive {
@@ -42,6 +43,15 @@ struct DaemonOptions {
   std::string monitor_token;  // the monitor's control token when [monitor] names none; "" = a new one
 };
 
+/// What the operator set on a running daemon, which a reload keeps: a drive switched off stays
+/// off, an override stays on the channel of the same name, a take being recorded goes on (in
+/// a new file).
+struct OperatorState {
+  bool outputs_enabled = true;
+  std::vector<std::pair<std::string, double>> overrides;  // channel name, value in output units
+  bool recording = false;
+};
+
 class Monitor;
 
 class Daemon {
@@ -50,8 +60,10 @@ class Daemon {
   /// performer's: load_performer) and starts it. Throws ConfigError or CommandError when
   /// something cannot be opened or loaded. `files` holds the model the performer's profile is
   /// checked against (it outlives the daemon).
+  /// `carried` (a reload's: operator_state() of the daemon it replaces) is in force before the
+  /// pipeline starts.
   Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
-         const DaemonOptions& options, LoadedFiles& files);
+         const DaemonOptions& options, LoadedFiles& files, const OperatorState& carried = {});
   ~Daemon();
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
@@ -75,6 +87,8 @@ class Daemon {
   const Config& config() const { return config_; }
   /// The performer's profile as last loaded or saved.
   const PerformerProfile& profile() const { return profile_; }
+  /// What the operator set (enable, overrides, recording), for the daemon a reload makes.
+  OperatorState operator_state() const;
 
  private:
   /// [monitor]: the page; a port or address that cannot be listened on is logged and the
