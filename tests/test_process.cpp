@@ -461,6 +461,29 @@ TEST_F(ProcessTest, EveryImageOfAFolderIsDetectedAfresh) {
     const double error = (rows[i] - expected).colwise().norm().mean() / interocular_distance(expected);
     EXPECT_LT(error, 0.05) << "photo " << i;
   }
+  // And measured as alone: not on the identity fitted on the photograph before it.
+  const fs::path second = dir_ / "second.csv";
+  run = run_process((folder / "photo1.png").string() + " --out " + second.string(), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  const CsvTable alone = read_csv_table(second), together = read_csv_table(all);
+  for (const char* column : {"height_fit", "width_fit", "width_3d", "protrusion_3d", "quality"})
+    EXPECT_EQ(numeric_column(together, column).at(1), numeric_column(alone, column).at(0)) << column;
+}
+
+TEST_F(ProcessTest, EveryPictureOfAFolderThatCannotBeReadIsNamed) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "astronaut.png");
+  const fs::path folder = dir_ / "photos";
+  fs::create_directories(folder);
+  fs::copy_file(kFixtureDir / "astronaut.png", folder / "face.png");
+  std::ofstream(folder / "broken.jpg") << "x";
+  std::ofstream(folder / "zbroken.png") << "y";
+  const fs::path out = dir_ / "out.csv";
+  const ProcessRun run = run_process(folder.string() + " --out " + out.string(), dir_);
+  EXPECT_EQ(run.exit_code, 65) << run.stderr_text;
+  for (const char* name : {"broken.jpg", "zbroken.png"})
+    EXPECT_NE(run.stderr_text.find(name), std::string::npos) << name << "\n" << run.stderr_text;
+  EXPECT_NE(run.stderr_text.find("2 pictures could not be decoded"), std::string::npos) << run.stderr_text;
+  EXPECT_EQ(read_csv_table(out).rows.size(), 1u) << "the picture that reads is processed";
 }
 
 TEST_F(ProcessTest, FramesOfACameraOnItsSideAreTurnedUprightFirst) {

@@ -29,6 +29,7 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -322,7 +323,8 @@ void run_process(const ProcessOptions& options) {
   const bool progress = ::isatty(STDERR_FILENO) == 1;
   StageTimes times;
   std::size_t rows = 0, tracked_rows = 0;
-  std::optional<std::string> decode_error;
+  std::optional<std::string> decode_error;  // the input stopped being readable
+  int undecoded = 0;                        // pictures or frames that could not be decoded
   fmt::memory_buffer row;
 
   const std::int64_t start = monotonic_ns();
@@ -343,7 +345,9 @@ void run_process(const ProcessOptions& options) {
       break;
     }
     if (frame.kind == DecodedFrame::Kind::kCorrupt) {
-      decode_error = frame.error;
+      // Each one named as it comes (a folder may hold several); the others are processed.
+      spdlog::warn("{}", frame.error);
+      ++undecoded;
       ring.release();
       continue;
     }
@@ -393,6 +397,10 @@ void run_process(const ProcessOptions& options) {
   const std::string input = options.input.string();
   if (decode_error)
     throw CommandError(fmt::format("{}: decoding failed after {} frames: {}", input, rows, *decode_error),
+                       kExitDataError);
+  if (undecoded > 0)
+    throw CommandError(fmt::format("{}: {} {}{} could not be decoded (each named above); the other {} were processed",
+                                   input, undecoded, independent ? "picture" : "frame", undecoded == 1 ? "" : "s", rows),
                        kExitDataError);
   if (rows == 0) throw CommandError(fmt::format("{}: no frames to process", input), kExitDataError);
   if (tracked_rows == 0)

@@ -14,8 +14,10 @@ FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, Fit
                                const FitOutput::Expressions& rest, AutoIdentity automatic, TrackerSettings tracking)
     : set_(set),
       settings_(settings),
-      automatic_(identity.size() == 0 && model.has_expressions() && automatic.model ? std::move(automatic)
-                                                                                    : AutoIdentity{}),
+      first_automatic_(identity.size() == 0 && model.has_expressions() && automatic.model ? std::move(automatic)
+                                                                                          : AutoIdentity{}),
+      first_rest_(rest),
+      automatic_(first_automatic_),
       identity_(identity),
       fitter_(model, set, settings, identity),
       arkit_(model.expression_names),
@@ -24,6 +26,19 @@ FrameProcessor::FrameProcessor(const MorphableModel& model, LandmarkSet set, Fit
       tracker_(std::move(predictor), tracking),
       rest_(rest) {
   identity_frames_.reserve(static_cast<std::size_t>(automatic_.frames));
+}
+
+void FrameProcessor::forget(FaceTracker::Next next) {
+  tracker_.reset(next);
+  identity_frames_.clear();
+  if (next != FaceTracker::Next::kStill || first_automatic_.frames == 0 || identity_.size() == 0) return;
+  const MorphableModel& model = *first_automatic_.model;
+  automatic_ = first_automatic_;
+  identity_ = Eigen::VectorXf();
+  rest_ = first_rest_;
+  fitter_ = Fitter(model, set_, settings_, identity_);
+  reference_ = mouth_reference(model, identity_, std::span<const double>(rest_.data(), rest_.size()));
+  fit_afresh_ = true;
 }
 
 // Calibration's two steps (cmd_calibrate.cpp) on the gathered frames: the identity behind them

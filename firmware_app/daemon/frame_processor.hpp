@@ -61,11 +61,10 @@ class FrameProcessor {
 
   /// The next frame is unrelated to the last (a still photograph, or the first frame of
   /// another clip): detect afresh (FaceTracker::reset), and gather an AutoIdentity's frames
-  /// afresh (another image may be another face).
-  void forget(FaceTracker::Next next) {
-    tracker_.reset(next);
-    identity_frames_.clear();
-  }
+  /// afresh (another image may be another face). Before a still an AutoIdentity also starts
+  /// again from the mean face, so that each photograph is measured as it would be alone, not
+  /// on the identity fitted on the one before it.
+  void forget(FaceTracker::Next next);
 
   /// Before the next frame is due: the landmark predictor's data into the cache
   /// (FaceTracker::warm; false while no face is tracked). Allocates nothing.
@@ -95,6 +94,8 @@ class FrameProcessor {
 
   LandmarkSet set_;
   FitSettings settings_;
+  const AutoIdentity first_automatic_;        // as constructed: what a still starts from again
+  const FitOutput::Expressions first_rest_;
   AutoIdentity automatic_;                    // frames = 0 once fitted, or when off
   std::vector<Landmarks2D> identity_frames_;  // reserved for automatic_.frames
   Eigen::VectorXf identity_;
