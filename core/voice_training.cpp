@@ -250,6 +250,15 @@ std::vector<bool> voice_activity(const VoiceActivitySettings& settings, std::spa
   return active;
 }
 
+void mark_voice_activity(VoiceRecording& recording, const AudioFeatureSettings& features,
+                         const VoiceActivitySettings& activity, std::span<const FeatureFrame> frames) {
+  const std::vector<bool> active = voice_activity(activity, frames);
+  for (VoiceTargetFrame& t : recording.targets) {
+    const std::int64_t k = frame_at(features, t.time_s);
+    t.speech = k >= 0 && k < static_cast<std::int64_t>(active.size()) && active[static_cast<std::size_t>(k)];
+  }
+}
+
 VoiceModel train_voice_model(std::span<const VoiceRecording> given, const VoiceTrainingSettings& s) {
   if (const std::string problem = invalid_feature_settings(s.features); !problem.empty())
     throw std::invalid_argument("voice training: features: " + problem);
@@ -264,13 +273,7 @@ VoiceModel train_voice_model(std::span<const VoiceRecording> given, const VoiceT
       throw std::invalid_argument("voice training: " + r.name + " is at " + std::to_string(r.sample_rate) +
                                   " Hz, the features at " + std::to_string(s.features.sample_rate) + " Hz");
     frames.push_back(extract_features(s.features, r.samples));
-    // Without a transcript, speech is what the voice activity detector hears.
-    if (r.has_transcript) continue;
-    const std::vector<bool> active = voice_activity(s.activity, frames.back());
-    for (VoiceTargetFrame& t : r.targets) {
-      const std::int64_t k = frame_at(s.features, t.time_s);
-      t.speech = k >= 0 && k < static_cast<std::int64_t>(active.size()) && active[static_cast<std::size_t>(k)];
-    }
+    if (!r.has_transcript) mark_voice_activity(r, s.features, s.activity, frames.back());
   }
   std::vector<std::size_t> all(recordings.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
