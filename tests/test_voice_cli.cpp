@@ -147,6 +147,23 @@ TEST(VoiceCli, TakesAreScoredOnTheSpeechTheirVoiceActivityHears) {
   for (const char* name : {"a.csv", "b.csv", "c.csv", "d.csv"}) expect_scored(run, name);
 }
 
+TEST(VoiceCli, ATakeWhoseCaptureTimeIsMissingOrGoesBackIsADataErrorNamingTheLine) {
+  const test::TempDir dir;
+  const fs::path out = dir.path() / "voice.lpv";
+  // Row 3 (line 5, after the header) blank, and row 2 (line 4) before row 1.
+  const fs::path blank = write_take(dir.path(), "blank", 1, {"1000000000", "1040000000", "1080000000", ""});
+  test::CommandRun run =
+      test::run_command(lipdrive(fmt::format("voice train --out {} {}", out.string(), blank.string())));
+  EXPECT_EQ(run.exit_code, 65) << run.output;
+  EXPECT_NE(run.output.find(blank.string() + ":5: capture_time_ns missing"), std::string::npos) << run.output;
+  const fs::path back = write_take(dir.path(), "back", 1, {"1000000000", "1040000000", "1030000000"});
+  run = test::run_command(lipdrive(fmt::format("voice train --out {} {}", out.string(), back.string())));
+  EXPECT_EQ(run.exit_code, 65) << run.output;
+  EXPECT_NE(run.output.find(back.string() + ":4: capture_time_ns earlier than the row before's"), std::string::npos)
+      << run.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(VoiceCli, TrainEvalAndProcessOnGridClips) {
   const fs::path grid = test::shared_fixtures() / "grid";
   LIPDRIVE_SKIP_WITHOUT_SHARED(grid / "bbaf2n.mpg");
