@@ -70,8 +70,9 @@ struct WordClosure {
 /// shows its closure when the minimum scaled value over its frames widened by kWidening_s on
 /// each side is at most kClosureLevel. Opening: the 90th percentile (nearest rank) of the
 /// scaled values over the frames of non-silence words. Final silence: from kSilenceDelay_s
-/// after the start of the last silence to its end, the median of the scaled values and their
-/// mean absolute frame-to-frame change (jitter, over consecutive tracked frames).
+/// after the start of the transcript's last word, when it is a silence, to its end, the median
+/// of the scaled values and their mean absolute frame-to-frame change (jitter, over
+/// consecutive tracked frames).
 struct ClosureMetric {
   static constexpr double kClosureLevel = 0.2;
   /// 2 and 3 frames of GRID's 25 fps video, as times, so that a recording at another frame
