@@ -121,13 +121,15 @@ ClosureMetric closure_metric(std::span<const double> values, std::span<const Wor
       for (int f = std::max(w.first, 0); f <= std::min(w.last, n - 1); ++f)
         if (!std::isnan(scaled[f])) speech.push_back(scaled[f]);
     if (!is_bilabial_word(w.word)) continue;
-    WordClosure closure{std::string(w.word), w.first, w.last, kNaN, false};
-    for (int f = std::max(w.first - widening, 0); f <= std::min(w.last + widening, n - 1); ++f)
-      if (!std::isnan(scaled[f]))
-        closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
-    closure.closed = closure.minimum <= ClosureMetric::kClosureLevel;
-    ++m.bilabial_words;
-    m.closures_seen += closure.closed;
+    WordClosure closure{std::string(w.word), w.first, w.last, kNaN, false, w.last < 0 || w.first > n - 1};
+    if (!closure.outside) {
+      for (int f = std::max(w.first - widening, 0); f <= std::min(w.last + widening, n - 1); ++f)
+        if (!std::isnan(scaled[f]))
+          closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
+      closure.closed = closure.minimum <= ClosureMetric::kClosureLevel;
+      ++m.bilabial_words;
+      m.closures_seen += closure.closed;
+    }
     m.words.push_back(std::move(closure));
   }
   m.opening = quantile(speech, 0.9);

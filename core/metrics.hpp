@@ -63,6 +63,7 @@ struct WordClosure {
   int first = 0, last = 0;  // the word's frames, before widening
   double minimum = 0;       // smallest scaled value in the widened window; NaN when no tracked frame
   bool closed = false;      // minimum <= kClosureLevel
+  bool outside = false;     // the word's frames all lie outside the series: not scored
 };
 
 /// Whether a mouth-opening series closes on the bilabial words and opens on the others.
@@ -86,7 +87,8 @@ struct ClosureMetric {
 };
 
 /// `values[f]` is frame f's value at `frames_per_second`, NaN when it was not tracked; words
-/// outside the series are clipped to it.
+/// are clipped to the series, and a bilabial word wholly outside it is listed as outside,
+/// neither a closure nor one of bilabial_words (the recording does not hold it).
 ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words,
                              double frames_per_second);
 
