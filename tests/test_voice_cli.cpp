@@ -10,6 +10,7 @@
 #include "fixture_paths.hpp"
 #include "serial_peers.hpp"  // test::TempDir
 
+#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -162,6 +163,17 @@ TEST(VoiceCli, ATakeWhoseCaptureTimeIsMissingOrGoesBackIsADataErrorNamingTheLine
   EXPECT_NE(run.output.find(back.string() + ":4: capture_time_ns earlier than the row before's"), std::string::npos)
       << run.output;
   EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
+  const test::TempDir dir;
+  const fs::path model = dir.path() / "voice.lpv";
+  save_voice_model_file(model, synthetic_model());
+  const test::CommandRun run =
+      test::run_command(lipdrive(fmt::format("voice eval --voice {} --folds 3", model.string())));
+  EXPECT_EQ(run.exit_code, static_cast<int>(CLI::ExitCodes::ValidationError)) << run.output;
+  EXPECT_NE(run.output.find("--test"), std::string::npos) << run.output;
+  EXPECT_EQ(run.output.find("nan"), std::string::npos) << run.output;
 }
 
 TEST(VoiceCli, TrainEvalAndProcessOnGridClips) {

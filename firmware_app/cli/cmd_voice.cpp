@@ -244,6 +244,9 @@ void run_eval(const EvalCommand& c) {
   if (!c.voice.empty() == !c.train.empty())
     throw CLI::ValidationError("--voice / --train",
                                "give either a trained model (--voice) or material to train on (--train)");
+  if (!c.voice.empty() && c.test.empty())
+    throw CLI::ValidationError("--test",
+                               "recordings to evaluate the --voice model on (--folds cross-validates --train)");
   if (c.folds == 0 && c.test.empty())
     throw CLI::ValidationError("--test", "recordings to evaluate on (or --folds K to cross-validate --train)");
   nlohmann::json report;
