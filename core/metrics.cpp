@@ -121,25 +121,29 @@ ClosureMetric closure_metric(std::span<const double> values, std::span<const Wor
       for (int f = std::max(w.first, 0); f <= std::min(w.last, n - 1); ++f)
         if (!std::isnan(scaled[f])) speech.push_back(scaled[f]);
     if (!is_bilabial_word(w.word)) continue;
-    WordClosure closure{std::string(w.word), w.first, w.last, kNaN, false};
-    for (int f = std::max(w.first - widening, 0); f <= std::min(w.last + widening, n - 1); ++f)
-      if (!std::isnan(scaled[f]))
-        closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
-    closure.closed = closure.minimum <= ClosureMetric::kClosureLevel;
-    ++m.bilabial_words;
-    m.closures_seen += closure.closed;
+    WordClosure closure{std::string(w.word), w.first, w.last, kNaN, false, w.last < 0 || w.first > n - 1};
+    if (!closure.outside) {
+      for (int f = std::max(w.first - widening, 0); f <= std::min(w.last + widening, n - 1); ++f)
+        if (!std::isnan(scaled[f]))
+          closure.minimum = std::isnan(closure.minimum) ? scaled[f] : std::min(closure.minimum, scaled[f]);
+      closure.closed = closure.minimum <= ClosureMetric::kClosureLevel;
+      ++m.bilabial_words;
+      m.closures_seen += closure.closed;
+    }
     m.words.push_back(std::move(closure));
   }
   m.opening = quantile(speech, 0.9);
 
   m.silence_median = m.silence_jitter = kNaN;
-  const auto last_silence = std::find_if(words.rbegin(), words.rend(), [](const WordFrames& w) { return w.silence; });
-  if (last_silence == words.rend()) return m;
+  // The final silence is the last word, when it is a silence: one earlier (the opening
+  // silence, a pause) is not where the mouth comes to rest at the end.
+  if (words.empty() || !words.back().silence) return m;
+  const WordFrames& final_silence = words.back();
   std::vector<double> silence;
   double steps = 0;
   int step_count = 0;
-  const int first = std::max(last_silence->first + silence_delay, 0);
-  const int last = std::min(last_silence->last, n - 1);
+  const int first = std::max(final_silence.first + silence_delay, 0);
+  const int last = std::min(final_silence.last, n - 1);
   for (int f = first; f <= last; ++f) {
     if (std::isnan(scaled[f])) continue;
     silence.push_back(scaled[f]);

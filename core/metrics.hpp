@@ -63,6 +63,7 @@ struct WordClosure {
   int first = 0, last = 0;  // the word's frames, before widening
   double minimum = 0;       // smallest scaled value in the widened window; NaN when no tracked frame
   bool closed = false;      // minimum <= kClosureLevel
+  bool outside = false;     // the word's frames all lie outside the series: not scored
 };
 
 /// Whether a mouth-opening series closes on the bilabial words and opens on the others.
@@ -70,8 +71,9 @@ struct WordClosure {
 /// shows its closure when the minimum scaled value over its frames widened by kWidening_s on
 /// each side is at most kClosureLevel. Opening: the 90th percentile (nearest rank) of the
 /// scaled values over the frames of non-silence words. Final silence: from kSilenceDelay_s
-/// after the start of the last silence to its end, the median of the scaled values and their
-/// mean absolute frame-to-frame change (jitter, over consecutive tracked frames).
+/// after the start of the transcript's last word, when it is a silence, to its end, the median
+/// of the scaled values and their mean absolute frame-to-frame change (jitter, over
+/// consecutive tracked frames).
 struct ClosureMetric {
   static constexpr double kClosureLevel = 0.2;
   /// 2 and 3 frames of GRID's 25 fps video, as times, so that a recording at another frame
@@ -85,7 +87,8 @@ struct ClosureMetric {
 };
 
 /// `values[f]` is frame f's value at `frames_per_second`, NaN when it was not tracked; words
-/// outside the series are clipped to it.
+/// are clipped to the series, and a bilabial word wholly outside it is listed as outside,
+/// neither a closure nor one of bilabial_words (the recording does not hold it).
 ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words,
                              double frames_per_second);
 

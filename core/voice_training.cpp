@@ -49,20 +49,31 @@ struct Sample {
   bool speech = false;
 };
 
+/// The recording's video frame interval: the median time between consecutive target frames,
+/// which a dropped frame or a gap in the camera does not move (NaN with fewer than two).
+double frame_interval_s(const std::vector<VoiceTargetFrame>& targets) {
+  std::vector<double> steps;
+  for (std::size_t i = 1; i < targets.size(); ++i) steps.push_back(targets[i].time_s - targets[i - 1].time_s);
+  return median(steps);
+}
+
 /// The samples of one recording: each tracked video frame at its nearest feature frame, and
-/// every feature frame between two tracked video frames in a row, the measures interpolated
-/// linearly between them (four times the samples at 100 and 25 frames a second; the mouth
-/// moves smoothly within 40 ms).
+/// every feature frame between two tracked video frames in a row at most 1.5 frame intervals
+/// apart, the measures interpolated linearly between them (four times the samples at 100 and
+/// 25 frames a second; the mouth moves smoothly within 40 ms). Across a longer gap (the camera
+/// away while the sound goes on) nothing is known of the mouth: the sound there is no sample.
 void collect_samples(const VoiceRecording& recording, std::size_t index, const AudioFeatureSettings& features,
                      std::vector<Sample>& out) {
   const auto& targets = recording.targets;
+  const double max_fill_s = 1.5 * frame_interval_s(targets);
   for (std::size_t i = 0; i < targets.size(); ++i) {
     const VoiceTargetFrame& t = targets[i];
     if (!t.tracked) continue;
     Sample sample{index, frame_at(features, t.time_s), {}, t.speech};
     for (std::size_t k = 0; k < kNumVoiceTargets; ++k) sample.y[k] = t.values[k];
     out.push_back(sample);
-    if (i + 1 >= targets.size() || !targets[i + 1].tracked) continue;
+    if (i + 1 >= targets.size() || !targets[i + 1].tracked || !(targets[i + 1].time_s - t.time_s <= max_fill_s))
+      continue;
     const VoiceTargetFrame& next = targets[i + 1];
     for (std::int64_t k = sample.frame + 1; k < frame_at(features, next.time_s); ++k) {
       const double centre_s = static_cast<double>((k + 1) * features.hop - features.centre_lag()) / features.sample_rate;
@@ -250,6 +261,15 @@ std::vector<bool> voice_activity(const VoiceActivitySettings& settings, std::spa
   return active;
 }
 
+void mark_voice_activity(VoiceRecording& recording, const AudioFeatureSettings& features,
+                         const VoiceActivitySettings& activity, std::span<const FeatureFrame> frames) {
+  const std::vector<bool> active = voice_activity(activity, frames);
+  for (VoiceTargetFrame& t : recording.targets) {
+    const std::int64_t k = frame_at(features, t.time_s);
+    t.speech = k >= 0 && k < static_cast<std::int64_t>(active.size()) && active[static_cast<std::size_t>(k)];
+  }
+}
+
 VoiceModel train_voice_model(std::span<const VoiceRecording> given, const VoiceTrainingSettings& s) {
   if (const std::string problem = invalid_feature_settings(s.features); !problem.empty())
     throw std::invalid_argument("voice training: features: " + problem);
@@ -264,13 +284,7 @@ VoiceModel train_voice_model(std::span<const VoiceRecording> given, const VoiceT
       throw std::invalid_argument("voice training: " + r.name + " is at " + std::to_string(r.sample_rate) +
                                   " Hz, the features at " + std::to_string(s.features.sample_rate) + " Hz");
     frames.push_back(extract_features(s.features, r.samples));
-    // Without a transcript, speech is what the voice activity detector hears.
-    if (r.has_transcript) continue;
-    const std::vector<bool> active = voice_activity(s.activity, frames.back());
-    for (VoiceTargetFrame& t : r.targets) {
-      const std::int64_t k = frame_at(s.features, t.time_s);
-      t.speech = k >= 0 && k < static_cast<std::int64_t>(active.size()) && active[static_cast<std::size_t>(k)];
-    }
+    if (!r.has_transcript) mark_voice_activity(r, s.features, s.activity, frames.back());
   }
   std::vector<std::size_t> all(recordings.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;

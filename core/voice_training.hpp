@@ -39,6 +39,12 @@ std::int64_t frame_at(const AudioFeatureSettings& settings, double t_s);
 /// `frames`' voice activity, frame by frame, as VoicePredictor hears it.
 std::vector<bool> voice_activity(const VoiceActivitySettings& settings, std::span<const FeatureFrame> frames);
 
+/// A recording without a transcript: marks as speech its target frames whose nearest feature
+/// frame of `frames` (the recording's, extract_features) the voice activity hears, as training
+/// and scoring both count speech (docs/voice.md).
+void mark_voice_activity(VoiceRecording& recording, const AudioFeatureSettings& features,
+                         const VoiceActivitySettings& activity, std::span<const FeatureFrame> frames);
+
 struct VoiceTrainingSettings {
   AudioFeatureSettings features{.cepstra = 20};
   VoiceActivitySettings activity;

@@ -1,5 +1,7 @@
 #include "sim/ict_import.hpp"
 
+#include "core/model_format.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -192,6 +194,15 @@ MorphableModel import_ict_model(const fs::path& dir, const IctImportOptions& opt
     model.expressions.col(static_cast<Eigen::Index>(e)) =
         displacement(dir / (indices.expressions[e] + ".obj"),
                      fmt::format("expression listed in {}", json_path.filename().string()), kept, shape_vertices);
+  // The model file's loader reads what is written here: its own validation (an expression name
+  // empty or listed twice, a landmark or triangle out of range, a number not finite) runs on
+  // the model now, so a model the loader would refuse is never written. The names and the
+  // landmark map come from vertex_indices.json, which the message names.
+  try {
+    deserialize_model(serialize_model(model), json_path.string());
+  } catch (const ModelFormatError& e) {
+    throw IctImportError(e.what());
+  }
   return model;
 }
 

@@ -219,6 +219,53 @@ TEST_F(EvalPlotTest, EvalPlacesTheWordsOnTheFramesOfARecordingAtAnyRate) {
   EXPECT_THAT(table.out, HasSubstr("at 50 frames/s"));
 }
 
+TEST_F(EvalPlotTest, EvalPlacesTheWordsFromTheEarliestRowWhateverItsFrameNumber) {
+  // The worked example as a take numbers it: frames from its capture sequence number, which
+  // may be near the int limit the frame column allows.
+  const auto align = write("take.align", kWorkedAlign);
+  for (const int first : {5000, 900000000}) {
+    std::string csv = "frame,time_s,tracked,open\n";
+    for (std::size_t f = 0; f < kWorkedOpen.size(); ++f)
+      csv += fmt::format("{},{:.4f},1,{}\n", first + static_cast<int>(f), 100 + f / 25.0, kWorkedOpen[f]);
+    const auto pred = write("pred.csv", csv);
+    const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto report = nlohmann::json::parse(result.out);
+    const auto& closure = report.at("closure")[0];
+    ASSERT_EQ(closure.at("closures_seen"), 1) << first;
+    EXPECT_EQ(closure.at("bilabial_words"), 2) << first;
+    EXPECT_NEAR(closure.at("opening").get<double>(), 1.0, 1e-9) << first;
+    EXPECT_NEAR(closure.at("silence_median").get<double>(), 0.1, 1e-9) << first;
+    EXPECT_NEAR(closure.at("silence_jitter").get<double>(), 0.01, 1e-9) << first;
+    EXPECT_EQ(closure.at("words")[1].at("first"), first + 7);  // "please", on the CSV's frame numbers
+  }
+}
+
+TEST_F(EvalPlotTest, EvalReportsWordsPastTheRowsAsOutsideNotAsMissedClosures) {
+  // The worked example cut after frame 5: "please" (frames 7-8) and the final silence are
+  // not in the recording.
+  std::string csv = "frame,tracked,open\n";
+  for (std::size_t f = 0; f < 6; ++f) csv += fmt::format("{},1,{}\n", f, kWorkedOpen[f]);
+  const auto pred = write("pred.csv", csv);
+  const auto align = write("take.align", kWorkedAlign);
+  const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  const auto report = nlohmann::json::parse(result.out);
+  const auto& closure = report.at("closure")[0];
+  EXPECT_EQ(closure.at("bilabial_words"), 1);
+  EXPECT_EQ(closure.at("closures_seen"), 1);
+  ASSERT_EQ(closure.at("words").size(), 2u);
+  EXPECT_FALSE(closure.at("words")[0].at("outside").get<bool>());
+  EXPECT_TRUE(closure.at("words")[1].at("outside").get<bool>());
+  EXPECT_FALSE(closure.at("words")[1].at("closed").get<bool>());
+  EXPECT_TRUE(closure.at("silence_median").is_null());
+
+  const RunResult table = run({"eval", "--pred", pred, "--align", align, "--columns", "open"});
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  EXPECT_THAT(table.out, HasSubstr("1/1"));
+  EXPECT_THAT(table.out, HasSubstr("\"please\" (frames 7..8) outside the rows: not scored"));
+}
+
 TEST_F(EvalPlotTest, EvalComparesTwoProcessOutputsAsATable) {
   const auto a = write("a.csv", kPredCsv);
   const auto b = write("b.csv", kPredCsv);

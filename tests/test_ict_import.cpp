@@ -153,6 +153,16 @@ TEST_F(IctImportTest, ALandmarkOutsideTheImportedVerticesIsNamed) {
               AllOf(HasSubstr("landmark 0 maps to vertex 1278"), HasSubstr("jaw-line substitute")));
 }
 
+TEST_F(IctImportTest, AnExpressionNameListedTwiceOrEmptyIsRefusedAsTheModelLoaderWould) {
+  write_indices({"jawOpen", "mouthSmile_L", "jawOpen"}, landmark_vertex(51));
+  EXPECT_THAT(import_error(), AllOf(HasSubstr((dir_ / "vertex_indices.json").string()),
+                                    HasSubstr("expression name \"jawOpen\" appears twice")));
+  write_obj(dir_ / ".obj", neutral_, false);  // the file an empty name reads
+  write_indices({"jawOpen", ""}, landmark_vertex(51));
+  EXPECT_THAT(import_error(),
+              AllOf(HasSubstr((dir_ / "vertex_indices.json").string()), HasSubstr("expression 1 has no name")));
+}
+
 TEST_F(IctImportTest, MissingOrBrokenIndexAndNeutralFilesAreNamed) {
   std::ofstream(dir_ / "vertex_indices.json") << "{\"expressions\": [\"jawOpen\"]}";
   EXPECT_THAT(import_error(), AllOf(HasSubstr("vertex_indices.json"), HasSubstr("idx_to_landmark_verts")));

@@ -153,5 +153,15 @@ TEST(ClosureMetric, BilabialWordsOfTheGridGrammar) {
   EXPECT_TRUE(std::isnan(none.silence_median));  // no silence in the transcript
 }
 
+TEST(ClosureMetric, ATranscriptThatDoesNotEndInSilenceHasNoFinalSilence) {
+  // A long opening silence, then words to the end: no silence runs to the end.
+  const std::vector<WordFrames> words = {{0, 10, "sil", true}, {11, 14, "bin", false}, {15, 18, "now", false}};
+  const std::vector<double> v = {0, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 10, 0, 10, 10, 10, 10, 10, 10};
+  const ClosureMetric m = closure_metric(v, words, 25);
+  EXPECT_TRUE(std::isnan(m.silence_median)) << m.silence_median;
+  EXPECT_TRUE(std::isnan(m.silence_jitter)) << m.silence_jitter;
+  EXPECT_EQ(m.closures_seen, 1);
+}
+
 }  // namespace
 }  // namespace lipdrive

@@ -4,11 +4,13 @@
 #include "build_paths.hpp"
 #include "command_run.hpp"
 #include "core/voice_training.hpp"
+#include "drivers/audio_file.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
 #include "serial_peers.hpp"  // test::TempDir
 
+#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -16,31 +18,41 @@
 #include <fstream>
 #include <numbers>
 #include <random>
+#include <sstream>
 
 namespace lipdrive {
 namespace {
 
 namespace fs = std::filesystem;
 
+/// The synthetic mouth's opening at `t_s`: one word from 0.5 s to 1.5 s.
+double synthetic_open(double t_s) { return t_s > 0.5 && t_s < 1.5 ? std::sin(std::numbers::pi * (t_s - 0.5)) : 0.0; }
+
+/// Two seconds of 16 kHz sound whose 150 Hz buzz follows synthetic_open, in a faint noise.
+std::vector<float> synthetic_sound(unsigned seed) {
+  const int rate = 16000;
+  std::mt19937 random(seed);
+  std::normal_distribution<float> noise(0, 1);
+  std::vector<float> samples(static_cast<std::size_t>(2 * rate));
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const double t = static_cast<double>(i) / rate;
+    samples[i] =
+        static_cast<float>(0.2 * synthetic_open(t) * std::sin(2 * std::numbers::pi * 150 * t) + 0.001 * noise(random));
+  }
+  return samples;
+}
+
 /// A small valid 16 kHz voice model, trained on synthetic sound.
 VoiceModel synthetic_model() {
   const int rate = 16000;
-  std::mt19937 random(1);
-  std::normal_distribution<float> noise(0, 1);
   std::vector<VoiceRecording> recordings;
-  for (int r = 0; r < 3; ++r) {
+  for (unsigned r = 0; r < 3; ++r) {
     VoiceRecording recording;
     recording.sample_rate = rate;
-    recording.samples.resize(static_cast<std::size_t>(2 * rate));
-    for (std::size_t i = 0; i < recording.samples.size(); ++i) {
-      const double t = static_cast<double>(i) / rate;
-      const double open = t > 0.5 && t < 1.5 ? std::sin(std::numbers::pi * (t - 0.5)) : 0.0;
-      recording.samples[i] =
-          static_cast<float>(0.2 * open * std::sin(2 * std::numbers::pi * 150 * t) + 0.001 * noise(random));
-    }
+    recording.samples = synthetic_sound(r + 1);
     for (int f = 0; f < 50; ++f) {
       const double t = f / 25.0;
-      const float open = t > 0.5 && t < 1.5 ? static_cast<float>(std::sin(std::numbers::pi * (t - 0.5))) : 0.0f;
+      const auto open = static_cast<float>(synthetic_open(t));
       recording.targets.push_back({t, {0.05f + 0.3f * open, 1.3f, 0.0f, 0.1f}, true, open > 0.05f});
     }
     recordings.push_back(recording);
@@ -51,6 +63,25 @@ VoiceModel synthetic_model() {
   settings.hidden = 0;
   settings.context = {.past = 4, .lookahead = 2, .stride = 2};
   return train_voice_model(recordings, settings);
+}
+
+/// A take as the daemon records it, NAME.csv with its sound NAME.wav: synthetic_sound(seed) and
+/// the synthetic mouth at 25 frames a second, the rows' capture times `capture_time_ns`
+/// (default: from 1 s on, 40 ms apart).
+fs::path write_take(const fs::path& dir, const std::string& name, unsigned seed,
+                    std::vector<std::string> capture_time_ns = {}) {
+  for (int f = static_cast<int>(capture_time_ns.size()); f < 50; ++f)
+    capture_time_ns.push_back(std::to_string(1'000'000'000LL + f * 40'000'000LL));
+  const fs::path csv = dir / (name + ".csv");
+  std::ofstream out(csv);
+  out << "frame,capture_time_ns,tracked,open,width_fit,protrusion_3d,seal\n";
+  for (int f = 0; f < 50; ++f)
+    out << fmt::format("{},{},1,{:.4f},1.3,0,0.1\n", f, capture_time_ns[static_cast<std::size_t>(f)],
+                       0.05 + 0.3 * synthetic_open(f / 25.0));
+  WavWriter sound(fs::path(csv).replace_extension(".wav"), 16000);
+  sound.write(synthetic_sound(seed));
+  sound.close();
+  return csv;
 }
 
 std::string lipdrive(const std::string& args) { return fmt::format("{} {}", test::kLipdrive, args); }
@@ -86,6 +117,63 @@ TEST(VoiceCli, BadInputIsNamedWithTheExitCodesOfOtherBadInput) {
       lipdrive(fmt::format("voice eval --voice {} --test {}", damaged.string(), test::kClip.string())));
   EXPECT_EQ(run.exit_code, 65) << run.output;
   EXPECT_NE(run.output.find(damaged.string() + ": checksum mismatch"), std::string::npos) << run.output;
+}
+
+TEST(VoiceCli, TakesAreScoredOnTheSpeechTheirVoiceActivityHears) {
+  const test::TempDir dir;
+  const fs::path model = dir.path() / "voice.lpv";
+  save_voice_model_file(model, synthetic_model());
+  const fs::path a = write_take(dir.path(), "a", 1), b = write_take(dir.path(), "b", 2);
+  // Every take's row: its speech frames (the word's 25 of 50), then open's r, σ ratio and
+  // final-silence distance, none NaN (the other measures hold still: their r is NaN).
+  const auto expect_scored = [](const test::CommandRun& run, const std::string& name) {
+    const std::size_t at = run.output.find("\n" + name);
+    ASSERT_NE(at, std::string::npos) << run.output;
+    std::istringstream row(run.output.substr(at + 1, run.output.find('\n', at + 1) - at - 1));
+    std::string recording, r, ratio, silence;
+    int frames = 0;
+    row >> recording >> frames >> r >> ratio >> silence;
+    EXPECT_GT(frames, 15) << run.output;
+    for (const std::string& figure : {r, ratio, silence}) EXPECT_NE(figure, "nan") << run.output;
+  };
+  test::CommandRun run = test::run_command(
+      lipdrive(fmt::format("voice eval --voice {} --test {} {}", model.string(), a.string(), b.string())));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  expect_scored(run, "a.csv");
+  expect_scored(run, "b.csv");
+  const fs::path c = write_take(dir.path(), "c", 3), d = write_take(dir.path(), "d", 4);
+  run = test::run_command(lipdrive(fmt::format("voice eval --hidden 0 --past-ms 40 --train {} {} {} {} --folds 2",
+                                               a.string(), b.string(), c.string(), d.string())));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  for (const char* name : {"a.csv", "b.csv", "c.csv", "d.csv"}) expect_scored(run, name);
+}
+
+TEST(VoiceCli, ATakeWhoseCaptureTimeIsMissingOrGoesBackIsADataErrorNamingTheLine) {
+  const test::TempDir dir;
+  const fs::path out = dir.path() / "voice.lpv";
+  // Row 3 (line 5, after the header) blank, and row 2 (line 4) before row 1.
+  const fs::path blank = write_take(dir.path(), "blank", 1, {"1000000000", "1040000000", "1080000000", ""});
+  test::CommandRun run =
+      test::run_command(lipdrive(fmt::format("voice train --out {} {}", out.string(), blank.string())));
+  EXPECT_EQ(run.exit_code, 65) << run.output;
+  EXPECT_NE(run.output.find(blank.string() + ":5: capture_time_ns missing"), std::string::npos) << run.output;
+  const fs::path back = write_take(dir.path(), "back", 1, {"1000000000", "1040000000", "1030000000"});
+  run = test::run_command(lipdrive(fmt::format("voice train --out {} {}", out.string(), back.string())));
+  EXPECT_EQ(run.exit_code, 65) << run.output;
+  EXPECT_NE(run.output.find(back.string() + ":4: capture_time_ns earlier than the row before's"), std::string::npos)
+      << run.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
+  const test::TempDir dir;
+  const fs::path model = dir.path() / "voice.lpv";
+  save_voice_model_file(model, synthetic_model());
+  const test::CommandRun run =
+      test::run_command(lipdrive(fmt::format("voice eval --voice {} --folds 3", model.string())));
+  EXPECT_EQ(run.exit_code, static_cast<int>(CLI::ExitCodes::ValidationError)) << run.output;
+  EXPECT_NE(run.output.find("--test"), std::string::npos) << run.output;
+  EXPECT_EQ(run.output.find("nan"), std::string::npos) << run.output;
 }
 
 TEST(VoiceCli, TrainEvalAndProcessOnGridClips) {

@@ -351,6 +351,27 @@ TEST(VoiceTraining, TooLittleMaterialOrAnotherSampleRateIsAnError) {
   EXPECT_THROW(train_voice_model(train, VoiceTrainingSettings{}), std::invalid_argument);
 }
 
+TEST(VoiceTraining, TheSoundOfAGapInTheVideoIsNoSample) {
+  // 6 s of sound, the video's rows for the first and the last second only: some 100 samples
+  // each (one per 10 ms feature frame), none in the 4 s between (400 more if they were filled).
+  VoiceRecording gap = synthetic_recording(1, 6);
+  std::erase_if(gap.targets, [](const VoiceTargetFrame& t) { return t.time_s >= 1 && t.time_s < 5; });
+  for (VoiceTargetFrame& t : gap.targets) t.tracked = true;
+  const std::vector<VoiceRecording> train{gap};
+  VoiceTrainingSettings settings;
+  settings.context = {.past = 100, .lookahead = 8, .stride = 1};  // more inputs than samples: the error counts them
+  try {
+    train_voice_model(train, settings);
+    FAIL() << "trained on too little material";
+  } catch (const std::invalid_argument& e) {
+    const std::string message = e.what(), prefix = "voice training: ";
+    ASSERT_EQ(message.rfind(prefix, 0), 0u) << message;
+    const int samples = std::stoi(message.substr(prefix.size()));
+    EXPECT_GE(samples, 190) << message;
+    EXPECT_LE(samples, 210) << message;
+  }
+}
+
 // ---- the file format ----------------------------------------------------------------------
 
 VoiceModel small_trained_model() {

@@ -1,7 +1,8 @@
 // `lipdrive eval`: per-column agreement between a ground-truth CSV and an output
 // CSV (docs/method.md 5), rows matched by frame number; with a GRID transcript
 // (--align), also the closure metric of each output column (lips closing on the
-// bilabial words, opening on the others, still in the final silence).
+// bilabial words, opening on the others, still in the final silence), the words placed
+// by their times from the earliest row.
 #include "core/metrics.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
@@ -156,18 +157,29 @@ std::vector<std::string> output_columns(const CsvTable& pred) {
   return columns;
 }
 
-/// closure_metric of each column, its values placed by frame number (NaN where a frame is
-/// missing or was not tracked).
+/// The frame number the transcript's time 0 falls on: the earliest row's (a take's frame is
+/// its capture sequence number, which need not start at 0).
+int first_frame(const CsvTable& table) {
+  const std::vector<int> frames = frame_numbers(table);
+  return frames.empty() ? 0 : *std::min_element(frames.begin(), frames.end());
+}
+
+/// closure_metric of each column, its values placed by frame number from `origin` (NaN where a
+/// frame is missing or was not tracked); `words` are on the frames from `origin`, and the
+/// results' words are given back on the CSV's frame numbers.
 std::vector<ColumnClosure> closure_columns(const CsvTable& pred, const std::vector<std::string>& columns,
-                                           std::span<const WordFrames> words, double frames_per_second) {
+                                           std::span<const WordFrames> words, double frames_per_second, int origin) {
   const std::vector<int> frames = frame_numbers(pred);
-  const int count = frames.empty() ? 0 : *std::max_element(frames.begin(), frames.end()) + 1;
+  const int count = frames.empty() ? 0 : *std::max_element(frames.begin(), frames.end()) - origin + 1;
   std::vector<ColumnClosure> results;
   for (const std::string& column : columns) {
     const std::vector<double> values = numeric_column(pred, column);
     std::vector<double> series(static_cast<std::size_t>(count), std::nan(""));
-    for (std::size_t row = 0; row < frames.size(); ++row) series[static_cast<std::size_t>(frames[row])] = values[row];
-    results.push_back({column, closure_metric(series, words, frames_per_second)});
+    for (std::size_t row = 0; row < frames.size(); ++row)
+      series[static_cast<std::size_t>(frames[row] - origin)] = values[row];
+    ClosureMetric metric = closure_metric(series, words, frames_per_second);
+    for (WordClosure& w : metric.words) w.first += origin, w.last += origin;
+    results.push_back({column, std::move(metric)});
   }
   return results;
 }
@@ -194,7 +206,9 @@ void print_closures(const std::vector<ColumnClosure>& results) {
     fmt::print("{:<{}} {:>10} {:>8.3f} {:>15.3f} {:>15.4f}\n", column, name_width,
                fmt::format("{}/{}", m.closures_seen, m.bilabial_words), m.opening, m.silence_median, m.silence_jitter);
     for (const WordClosure& w : m.words)
-      if (!w.closed)
+      if (w.outside)
+        fmt::print("  {}: \"{}\" (frames {}..{}) outside the rows: not scored\n", column, w.word, w.first, w.last);
+      else if (!w.closed)
         fmt::print("  {}: \"{}\" (frames {}..{}) not closed: minimum {:.3f}\n", column, w.word, w.first, w.last,
                    w.minimum);
   }
@@ -212,7 +226,8 @@ nlohmann::json closures_json(const std::vector<ColumnClosure>& results) {
                        {"first", w.first},
                        {"last", w.last},
                        {"minimum", number(w.minimum)},
-                       {"closed", w.closed}});
+                       {"closed", w.closed},
+                       {"outside", w.outside}});
     json.push_back({{"column", column},
                     {"bilabial_words", m.bilabial_words},
                     {"closures_seen", m.closures_seen},
@@ -252,6 +267,9 @@ void run_eval(const EvalOptions& options) {
   std::vector<AlignedWord> align;
   if (!options.align_path.empty()) align = read_grid_align(options.align_path);
   const double rate = align.empty() ? kGridFramesPerSecond : frames_per_second(pred);  // the words' frames
+  // The words' frames count from the earliest row of the files (the truth shares the output's
+  // frame numbers).
+  int origin = first_frame(pred);
 
   std::vector<ColumnAgreement> results;
   std::size_t frames_matched = 0;
@@ -259,8 +277,12 @@ void run_eval(const EvalOptions& options) {
   if (!options.truth_path.empty()) {
     const CsvTable truth = read_csv_table(options.truth_path);
     if (columns.empty()) columns = default_columns(truth, pred);
+    origin = std::min(origin, first_frame(truth));
     std::optional<std::set<int>> scored_frames;
-    if (!align.empty()) scored_frames = speech_frames(align, rate);
+    if (!align.empty()) {
+      scored_frames.emplace();
+      for (int frame : speech_frames(align, rate)) scored_frames->insert(frame + origin);
+    }
     const auto rows = matched_rows(truth, pred, scored_frames);
     if (rows.empty()) {
       throw CommandError(fmt::format("{} and {} have no {}frames in common", options.truth_path, options.pred_path,
@@ -273,7 +295,7 @@ void run_eval(const EvalOptions& options) {
     columns = output_columns(pred);
   }
   std::vector<ColumnClosure> closures;
-  if (!align.empty()) closures = closure_columns(pred, columns, word_frames(align, rate), rate);
+  if (!align.empty()) closures = closure_columns(pred, columns, word_frames(align, rate), rate, origin);
 
   if (options.json) {
     std::cout << to_json(options, frames_matched, results, closures).dump(2) << '\n';

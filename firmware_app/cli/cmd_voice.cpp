@@ -129,7 +129,11 @@ struct Scores {
   std::array<SpeechAgreement, kNumVoiceTargets> targets{};
 };
 
-Scores score(const VoiceModel& model, const VoiceRecording& recording) {
+/// `recording` (a copy: without a transcript its speech frames are marked here, by the voice
+/// activity, as training marks them) scored against `model`'s predictions.
+Scores score(const VoiceModel& model, VoiceRecording recording) {
+  if (!recording.has_transcript)
+    mark_voice_activity(recording, model.features, model.activity, extract_features(model.features, recording.samples));
   const std::vector<VoiceOutput> outputs = predict_recording(model, recording);
   const std::size_t n = recording.targets.size();
   std::vector<bool> speech(n);
@@ -240,6 +244,9 @@ void run_eval(const EvalCommand& c) {
   if (!c.voice.empty() == !c.train.empty())
     throw CLI::ValidationError("--voice / --train",
                                "give either a trained model (--voice) or material to train on (--train)");
+  if (!c.voice.empty() && c.test.empty())
+    throw CLI::ValidationError("--test",
+                               "recordings to evaluate the --voice model on (--folds cross-validates --train)");
   if (c.folds == 0 && c.test.empty())
     throw CLI::ValidationError("--test", "recordings to evaluate on (or --folds K to cross-validate --train)");
   nlohmann::json report;

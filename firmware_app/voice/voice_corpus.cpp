@@ -100,6 +100,12 @@ VoiceRecording load_take(const fs::path& take, int sample_rate) {
   recording.samples = sound_of(wav, sample_rate).samples;
   recording.sample_rate = sample_rate;
   for (std::size_t i = 0; i < time_ns.size(); ++i) {
+    // The rows' capture times place the measures on the sound: one missing, or going back, places none.
+    if (!std::isfinite(time_ns[i]) || (i > 0 && time_ns[i] < time_ns[i - 1]))
+      throw CommandError(
+          fmt::format("{}:{}: capture_time_ns {}", take.string(), table.line_numbers[i],
+                      std::isfinite(time_ns[i]) ? "earlier than the row before's" : "missing (blank or not finite)"),
+          kExitDataError);
     VoiceTargetFrame target;
     target.time_s = (time_ns[i] - time_ns[0]) * 1e-9;
     target.tracked = tracked[i] == 1;

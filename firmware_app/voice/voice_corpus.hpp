@@ -15,7 +15,8 @@ namespace lipdrive {
 /// A clip with sound, or a take (.csv) with its sound, resampled to `sample_rate`. Throws
 /// CommandError naming the file: kExitNoInput when it (or a take's sound) is missing,
 /// kExitDataError when it has no sound (no audio track, or an image or a folder), a take's
-/// table cannot be read, or it has no tracked frame.
+/// table cannot be read or a row's capture_time_ns is missing or earlier than the row before's,
+/// or it has no tracked frame.
 VoiceRecording load_voice_recording(const std::filesystem::path& input, int sample_rate, FrameProcessor& processor);
 
 }  // namespace lipdrive
