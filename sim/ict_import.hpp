@@ -38,7 +38,8 @@ inline constexpr std::array<int, 16> kIctJawSubstitutes{1278, 1272, 12,   1834, 
 /// Reads DIR/vertex_indices.json, DIR/generic_neutral_mesh.obj, DIR/identity000.obj ... (as
 /// many as are consecutive) and DIR/<expression>.obj for every name vertex_indices.json lists.
 /// Throws IctImportError naming the file: missing, unreadable, invalid, a vertex count that
-/// does not match, a landmark index outside the kept vertices.
+/// does not match, a landmark index outside the kept vertices, or a model the model file's
+/// loader would refuse (an expression name listed twice or empty).
 MorphableModel import_ict_model(const std::filesystem::path& dir, const IctImportOptions& options = {});
 
 }  // namespace lipdrive
