@@ -401,6 +401,17 @@ TEST_F(ConfigTest, CalibrateWritesTheProfileTheConfigurationNames) {
   EXPECT_EQ(load_config(file_).performer.name, "alice") << "the profile it names now exists";
 }
 
+TEST_F(ConfigTest, CalibrateOnTheConfiguredSimulatedCameraPlaysItOnce) {
+  // The daemon loops the replayed clip; calibrating on it must end at the clip's end (the
+  // timeout fails the test instead of hanging it).
+  write("real_time = false\nloop = true");
+  const test::CommandRun run = test::run_command(fmt::format("timeout 60 {} calibrate --config {} --performer carol --out {}",
+                                                             test::kLipdrive, file_.string(),
+                                                             (dir_ / "carol.toml").string()));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(fs::exists(dir_ / "carol.toml"));
+}
+
 TEST_F(ConfigTest, OfflineCommandsTakeTheRigsConfiguration) {
   // A camera this machine does not have: the recordings stand in for it.
   write("type = \"v4l2\"\ndevice = \"/dev/video-lipdrive-missing\"");

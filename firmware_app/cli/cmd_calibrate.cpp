@@ -43,7 +43,13 @@ struct CalibrateOptions {
 /// The configured camera, or the recording that stands in for it, turned as the camera is
 /// ([camera] rotation).
 std::unique_ptr<FrameSource> open_source(const Config& config, const CalibrateOptions& options) {
-  if (options.input.empty()) return make_source(config);
+  if (options.input.empty()) {
+    // The configuration's simulated camera is a recording like --input: played once through,
+    // its end ends the capture (looping, as the daemon replays it, it would never end).
+    Config once = config;
+    once.camera.sim.loop = false;
+    return make_source(once);
+  }
   return upright(std::make_unique<SimulatedCamera>(open_recording(options.input)), config.camera.rotation);
 }
 
@@ -156,11 +162,16 @@ void run_calibrate(const CalibrateOptions& options) {
     motion->add(m.measures);
     if (!recording && frame.media_time_s - motion_start_s >= options.motion_seconds) break;
   }
+  const std::string what = source->describe();
+  if (neutral.measures->size() < neutral_frames)
+    throw CommandError(fmt::format("{}: calibration failed: {} tracked frames, the neutral capture needs {}", what,
+                                   neutral.measures->size(), neutral_frames),
+                       kExitDataError);
   PerformerProfile profile;
   try {
     profile = calibrate(neutral.measures->samples(), motion->samples());
   } catch (const CalibrationError& e) {
-    throw CommandError(fmt::format("calibration failed: {}", e.what()), kExitDataError);
+    throw CommandError(fmt::format("{}: calibration failed: {}", what, e.what()), kExitDataError);
   }
   profile.face_indices = median_indices(neutral.faces);
   profile.identity = identity;
