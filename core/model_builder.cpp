@@ -90,6 +90,13 @@ MorphableModel build_model(const ModelBuildInput& input, const ModelBuildOptions
   model.stddev = stddev.cast<float>();
   model.basis = basis.cast<float>();
   model.total_variance = static_cast<float>(eigenvalues.sum());
+  // The file stores it (and everything else) in 32-bit floats: coordinates whose variance does
+  // not fit one (beyond about 1e19 units, or differences below 1e-19) would write a model the
+  // loader refuses.
+  if (!std::isfinite(model.total_variance) || !(model.total_variance > 0) || !model.basis.allFinite() ||
+      !model.mean.allFinite())
+    throw ModelBuildError("the poses' coordinates are out of the range a model stores (32-bit floats): scale them to "
+                          "millimetres or metres");
   model.triangles = input.triangles;
   model.landmark_vertex = input.landmark_vertex;
   model.pose_names = input.pose_names;

@@ -138,6 +138,11 @@ TEST(ModelBuilder, RejectsUnusableInput) {
   EXPECT_THAT(build_error(identical), HasSubstr("all poses are identical"));
 
   EXPECT_THAT(build_error(input, {.components = 0, .variance_target = 1.5}), HasSubstr("variance target"));
+
+  // Coordinates whose variance a 32-bit float cannot hold: no file the loader would refuse.
+  ModelBuildInput huge = input;
+  for (Eigen::Matrix3Xf& pose : huge.pose_vertices) pose *= 1e20f;
+  EXPECT_THAT(build_error(huge), HasSubstr("out of the range a model stores"));
 }
 
 // --- `lipdrive model build | info` through the real binary ------------------
@@ -207,6 +212,13 @@ TEST_F(ModelCommandTest, RejectsAPoseWithADifferentTriangleList) {
   write_obj(dir_ / "poses" / "pose2.obj", mesh);
   EXPECT_EQ(run(build_args()), kExitDataError);
   EXPECT_THAT(output_, AllOf(HasSubstr("pose2.obj: triangle list differs"), HasSubstr("face 2")));
+}
+
+TEST_F(ModelCommandTest, ALandmarkMappedTwiceIsAnError) {
+  std::ofstream(dir_ / "landmarks.toml") << "[landmarks]\n5 = 1\n05 = 3\n";
+  EXPECT_EQ(run(build_args()), kExitDataError) << output_;
+  EXPECT_THAT(output_, HasSubstr("landmark 5 is mapped twice"));
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "out.lpm"));
 }
 
 TEST_F(ModelCommandTest, RefusesAVarianceOutsideItsRange) {

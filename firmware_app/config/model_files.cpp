@@ -172,6 +172,8 @@ std::array<std::int32_t, kNumLandmarks> read_landmark_map(const std::filesystem:
     const auto index = parse_index(key.str());
     if (!index) fail(name, "unknown key (expected an iBUG landmark index 0..67)");
     if (*index < 0 || *index >= kNumLandmarks) fail(name, "landmark index outside 0..67");
+    // "5" and "05" are one landmark: the second would silently replace the first.
+    if (map[static_cast<std::size_t>(*index)] >= 0) fail(name, fmt::format("landmark {} is mapped twice", *index));
     const auto vertex = node.value_exact<std::int64_t>();
     if (!node.is_integer() || !vertex) fail(name, "vertex is not an integer");
     if (*vertex < 0) fail(name, fmt::format("negative vertex index {}", *vertex));
