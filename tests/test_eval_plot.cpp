@@ -44,6 +44,13 @@ std::string read_text(const fs::path& path) {
   return text.str();
 }
 
+// A worked example of the closure metric at GRID's 25 fps: silence 0-1, "bin" 2-3 (the lips
+// meet at frame 3), "one" 4-6, "please" 7-8 (within 2 frames of it nothing below 0.3 of the
+// range), final silence 9-16, scored from frame 12.
+constexpr std::array kWorkedOpen = {0.1, 0.1, 0.5, 0.0, 0.8,  1.0, 0.9, 0.6, 0.55,
+                                    0.3, 0.3, 0.1, 0.1, 0.12, 0.1, 0.1, 0.1};
+constexpr const char* kWorkedAlign = "0 2000 sil\n2000 4000 bin\n4000 7000 one\n7000 9000 please\n9000 17000 sil\n";
+
 class EvalPlotTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -74,6 +81,15 @@ class EvalPlotTest : public ::testing::Test {
     result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     result.err = read_text(err_path);
     return result;
+  }
+
+  /// `lipdrive eval --json` of `csv` (an `open` column) against the worked example's transcript:
+  /// the closure report of that column.
+  nlohmann::json closure_of(const std::string& csv) const {
+    const RunResult result = run({"eval", "--pred", write("pred.csv", csv), "--align",
+                                  write("take.align", kWorkedAlign), "--columns", "open", "--json"});
+    EXPECT_EQ(result.exit_code, 0) << result.err;
+    return result.exit_code == 0 ? nlohmann::json::parse(result.out).at("closure")[0] : nlohmann::json::object();
   }
 
   fs::path dir_;
@@ -152,13 +168,6 @@ TEST_F(EvalPlotTest, EvalWithAlignmentScoresOnlySpeechFrames) {
   EXPECT_TRUE(width.at("pearson_r").is_null());  // one pair: no correlation
 }
 
-// A worked example of the closure metric at GRID's 25 fps: silence 0-1, "bin" 2-3 (the lips
-// meet at frame 3), "one" 4-6, "please" 7-8 (within 2 frames of it nothing below 0.3 of the
-// range), final silence 9-16, scored from frame 12.
-constexpr std::array kWorkedOpen = {0.1, 0.1, 0.5, 0.0, 0.8,  1.0, 0.9, 0.6, 0.55,
-                                    0.3, 0.3, 0.1, 0.1, 0.12, 0.1, 0.1, 0.1};
-constexpr const char* kWorkedAlign = "0 2000 sil\n2000 4000 bin\n4000 7000 one\n7000 9000 please\n9000 17000 sil\n";
-
 TEST_F(EvalPlotTest, EvalWithAlignmentAloneReportsTheClosureMetric) {
   std::string csv = "frame,tracked,open\n";
   for (std::size_t f = 0; f < kWorkedOpen.size(); ++f) csv += fmt::format("{},1,{}\n", f, kWorkedOpen[f]);
@@ -200,12 +209,8 @@ TEST_F(EvalPlotTest, EvalPlacesTheWordsOnTheFramesOfARecordingAtAnyRate) {
   std::string csv = "frame,time_s,tracked,open\n";
   for (std::size_t f = 0; f < 2 * kWorkedOpen.size(); ++f)
     csv += fmt::format("{},{:.4f},1,{}\n", f, f / 50.0, kWorkedOpen[f / 2]);
-  const auto pred = write("pred.csv", csv);
-  const auto align = write("take.align", kWorkedAlign);
-  const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
-  ASSERT_EQ(result.exit_code, 0) << result.err;
-  const auto report = nlohmann::json::parse(result.out);
-  const auto& closure = report.at("closure")[0];
+  const nlohmann::json closure = closure_of(csv);
+  ASSERT_FALSE(closure.empty());
   EXPECT_EQ(closure.at("closures_seen"), 1);  // "bin" closes, "please" does not
   EXPECT_NEAR(closure.at("opening").get<double>(), 1.0, 1e-9);
   // Final silence from frame 18 + 6: 0.1 0.1 0.12 0.12 0.1 0.1 0.1 0.1 0.1 0.1.
@@ -214,7 +219,8 @@ TEST_F(EvalPlotTest, EvalPlacesTheWordsOnTheFramesOfARecordingAtAnyRate) {
   ASSERT_EQ(closure.at("words").size(), 2u);
   EXPECT_EQ(closure.at("words")[1].at("first"), 14);  // "please" from 7000 / 25000 s
 
-  const RunResult table = run({"eval", "--pred", pred, "--align", align, "--columns", "open"});
+  const RunResult table = run(
+      {"eval", "--pred", (dir_ / "pred.csv").string(), "--align", (dir_ / "take.align").string(), "--columns", "open"});
   ASSERT_EQ(table.exit_code, 0) << table.err;
   EXPECT_THAT(table.out, HasSubstr("at 50 frames/s"));
 }
@@ -222,16 +228,12 @@ TEST_F(EvalPlotTest, EvalPlacesTheWordsOnTheFramesOfARecordingAtAnyRate) {
 TEST_F(EvalPlotTest, EvalPlacesTheWordsFromTheEarliestRowWhateverItsFrameNumber) {
   // The worked example as a take numbers it: frames from its capture sequence number, which
   // may be near the int limit the frame column allows.
-  const auto align = write("take.align", kWorkedAlign);
   for (const int first : {5000, 900000000}) {
     std::string csv = "frame,time_s,tracked,open\n";
     for (std::size_t f = 0; f < kWorkedOpen.size(); ++f)
       csv += fmt::format("{},{:.4f},1,{}\n", first + static_cast<int>(f), 100 + f / 25.0, kWorkedOpen[f]);
-    const auto pred = write("pred.csv", csv);
-    const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
-    ASSERT_EQ(result.exit_code, 0) << result.err;
-    const auto report = nlohmann::json::parse(result.out);
-    const auto& closure = report.at("closure")[0];
+    const nlohmann::json closure = closure_of(csv);
+    ASSERT_FALSE(closure.empty());
     ASSERT_EQ(closure.at("closures_seen"), 1) << first;
     EXPECT_EQ(closure.at("bilabial_words"), 2) << first;
     EXPECT_NEAR(closure.at("opening").get<double>(), 1.0, 1e-9) << first;
@@ -246,12 +248,8 @@ TEST_F(EvalPlotTest, EvalReportsWordsPastTheRowsAsOutsideNotAsMissedClosures) {
   // not in the recording.
   std::string csv = "frame,tracked,open\n";
   for (std::size_t f = 0; f < 6; ++f) csv += fmt::format("{},1,{}\n", f, kWorkedOpen[f]);
-  const auto pred = write("pred.csv", csv);
-  const auto align = write("take.align", kWorkedAlign);
-  const RunResult result = run({"eval", "--pred", pred, "--align", align, "--columns", "open", "--json"});
-  ASSERT_EQ(result.exit_code, 0) << result.err;
-  const auto report = nlohmann::json::parse(result.out);
-  const auto& closure = report.at("closure")[0];
+  const nlohmann::json closure = closure_of(csv);
+  ASSERT_FALSE(closure.empty());
   EXPECT_EQ(closure.at("bilabial_words"), 1);
   EXPECT_EQ(closure.at("closures_seen"), 1);
   ASSERT_EQ(closure.at("words").size(), 2u);
@@ -260,7 +258,8 @@ TEST_F(EvalPlotTest, EvalReportsWordsPastTheRowsAsOutsideNotAsMissedClosures) {
   EXPECT_FALSE(closure.at("words")[1].at("closed").get<bool>());
   EXPECT_TRUE(closure.at("silence_median").is_null());
 
-  const RunResult table = run({"eval", "--pred", pred, "--align", align, "--columns", "open"});
+  const RunResult table = run({"eval", "--pred", (dir_ / "pred.csv").string(), "--align",
+                               (dir_ / "take.align").string(), "--columns", "open"});
   ASSERT_EQ(table.exit_code, 0) << table.err;
   EXPECT_THAT(table.out, HasSubstr("1/1"));
   EXPECT_THAT(table.out, HasSubstr("\"please\" (frames 7..8) outside the rows: not scored"));

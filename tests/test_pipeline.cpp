@@ -328,15 +328,20 @@ TEST_F(PipelineTest, HoldsTheCpuLatencyRequestWhileTheFramePathRuns) {
   EXPECT_EQ(CpuLatencyRequest::current_target(), before);
 }
 
-TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
+/// The pipeline on the clip replayed in real time with `faults`, taking frames every 20 ms.
+std::unique_ptr<Pipeline> replaying(const SimulatedCameraOptions::FaultInjection& faults, DriveControl& control) {
   SimulatedCameraOptions options = clip_options();
   options.real_time = true;
-  options.faults.disconnect_after = 10;
-  options.faults.reconnect = 400ms;
+  options.faults = faults;
   PipelineSettings settings;
   settings.frame_wait = 20ms;
+  return std::make_unique<Pipeline>(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
+}
+
+TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
   DriveControl control;
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
+  const std::unique_ptr<Pipeline> replay = replaying({.disconnect_after = 10, .reconnect = 400ms}, control);
+  Pipeline& pipeline = *replay;
   RecordingOutput output;
   pipeline.add_output(output);
   pipeline.start();
@@ -391,14 +396,9 @@ PipelineSettings neutral_out_of_reach() {
 
 TEST_F(PipelineTest, ACameraThatFallsSilentWithoutAnErrorIsNotConnectedUntilFramesComeAgain) {
   // A stream that stalls without reporting anything (a cable glitch): grab() only times out.
-  SimulatedCameraOptions options = clip_options();
-  options.real_time = true;
-  options.faults.stall_every = 20;
-  options.faults.stall = 1500ms;
-  PipelineSettings settings;
-  settings.frame_wait = 20ms;
   DriveControl control;
-  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
+  const std::unique_ptr<Pipeline> replay = replaying({.stall_every = 20, .stall = 1500ms}, control);
+  Pipeline& pipeline = *replay;
   pipeline.start();
   wait_for([&] { return !pipeline.stats().connected; }, 30s);
   ASSERT_FALSE(pipeline.stats().connected) << "reported after a second without frames";

@@ -54,6 +54,22 @@ class ReloadTest : public ::testing::Test {
     std::error_code ec;
     fs::remove_all(dir_, ec);
   }
+  /// The simulated camera at 60 fps, `more` tables, an `open` channel and a Modbus TCP server on
+  /// `port`, written to the test's folder.
+  fs::path modbus_server_config(int port, const std::string& more = "") const {
+    const fs::path config = dir_ / "lipdrive.toml";
+    std::ofstream(config) << test::sim_camera_at_60_fps() << more
+                          << fmt::format(R"([[channels]]
+name = "open"
+signal = "open"
+[[outputs.modbus_server]]
+transport = "tcp"
+address = "127.0.0.1"
+port = {}
+)",
+                                         port);
+    return config;
+  }
   fs::path dir_;
 };
 
@@ -138,18 +154,7 @@ class PollingClients {
 TEST_F(ReloadTest, ModbusPolledFlatOutThroughReloadsAndStop) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const int port = test::free_port();
-  const fs::path config = dir_ / "lipdrive.toml";
-  std::ofstream(config) << test::sim_camera_at_60_fps()
-                        << fmt::format(R"([[channels]]
-name = "open"
-signal = "open"
-[[outputs.modbus_server]]
-transport = "tcp"
-address = "127.0.0.1"
-port = {}
-)",
-                                       port);
-  test::DaemonProcess daemon(config, dir_ / "stderr.txt");
+  test::DaemonProcess daemon(modbus_server_config(port), dir_ / "stderr.txt");
   ASSERT_TRUE(daemon.wait_for_log("running:", 120s)) << daemon.log();
 
   PollingClients clients(4, port);
@@ -186,20 +191,9 @@ TEST_F(ReloadTest, WhatTheOperatorSetOutlivesAReload) {
   // neutral captured for a performer without a profile file: after SIGHUP all of it holds.
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const int port = test::free_port();
-  const fs::path config = dir_ / "lipdrive.toml";
-  std::ofstream(config) << test::sim_camera_at_60_fps()
-                        << fmt::format(R"([recording]
-dir = "{}"
-[[channels]]
-name = "open"
-signal = "open"
-[[outputs.modbus_server]]
-transport = "tcp"
-address = "127.0.0.1"
-port = {}
-)",
-                                       (dir_ / "takes").string(), port);
-  test::DaemonProcess daemon(config, dir_ / "stderr.txt");
+  test::DaemonProcess daemon(
+      modbus_server_config(port, fmt::format("[recording]\ndir = \"{}\"\n", (dir_ / "takes").string())),
+      dir_ / "stderr.txt");
   ASSERT_TRUE(daemon.wait_for_log("running:", 120s)) << daemon.log();
   modbus_t* master = modbus_new_tcp("127.0.0.1", port);
   ASSERT_NE(master, nullptr);
