@@ -30,8 +30,8 @@ DisplayOrientation orientation_of_matrix(const std::int32_t* matrix) {
   return {.turn = static_cast<Rotation>(((quarters % 4) + 4) % 4 * 90)};
 }
 
-/// An EXIF orientation tag (FFmpeg's JPEG and TIFF decoders put it in the picture's metadata
-/// as "Orientation"): 1 as stored, 2 mirrored, 3 turned 180°, 4 mirrored and turned 180°,
+/// An EXIF orientation tag (FFmpeg's JPEG decoder puts it in the picture's metadata as
+/// "Orientation"; its PNG and TIFF decoders do not, so their tags are not read): 1 as stored, 2 mirrored, 3 turned 180°, 4 mirrored and turned 180°,
 /// 5 mirrored and turned 270°, 6 turned 90°, 7 mirrored and turned 90°, 8 turned 270°
 /// (clockwise); anything else as stored.
 DisplayOrientation orientation_of_exif(const char* tag) {
