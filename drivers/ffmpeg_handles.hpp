@@ -115,10 +115,12 @@ class PictureConverter {
   }
 
   /// A width × height picture of pixels `sample_aspect` wide for each unit of height, in square
-  /// pixels: the shorter side stretched (a ratio within 1 % of 1, or unknown, keeps the size).
+  /// pixels: the shorter side stretched. A ratio within 1 % of 1, or unknown, keeps the size, and
+  /// so does one no camera uses (outside 1:2 to 2:1; anamorphic video's are 0.9 to 1.8): a
+  /// file's pHYs of 2000:1 would ask for a picture thousands of times its size.
   static cv::Size shown_size(int width, int height, AVRational sample_aspect) {
     const double ratio = sample_aspect.num > 0 && sample_aspect.den > 0 ? av_q2d(sample_aspect) : 1.0;
-    if (std::abs(ratio - 1.0) < 0.01) return {width, height};
+    if (std::abs(ratio - 1.0) < 0.01 || ratio < 0.5 || ratio > 2.0) return {width, height};
     if (ratio > 1) return {static_cast<int>(std::lround(width * ratio)), height};
     return {width, static_cast<int>(std::lround(height / ratio))};
   }

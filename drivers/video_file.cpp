@@ -3,6 +3,7 @@
 #include "drivers/ffmpeg_handles.hpp"
 
 #include <fmt/format.h>
+#include <opencv2/core.hpp>
 
 extern "C" {
 #include <libavutil/display.h>
@@ -160,7 +161,13 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   frame_index_ = std::max(frame_index_ + 1, d.timeline_index(frame_rate_));
   const AVRational sample_aspect =
       av_guess_sample_aspect_ratio(d.format.get(), d.format->streams[d.stream], d.picture.get());
-  const bool converted = d.planes.convert(*d.picture, gray, sample_aspect) && d.planes.convert_cr(*d.picture, cr);
+  bool converted = false;
+  try {
+    converted = d.planes.convert(*d.picture, gray, sample_aspect) && d.planes.convert_cr(*d.picture, cr);
+  } catch (const cv::Exception& e) {  // the planes' allocation: a picture too large for memory
+    av_frame_unref(d.picture.get());
+    d.fail(fmt::format("cannot hold the picture's planes: {}", e.what()));
+  }
   const AVDictionaryEntry* exif = av_dict_get(d.picture->metadata, "Orientation", nullptr, 0);
   orientation_ = exif != nullptr ? orientation_of_exif(exif->value) : stream_orientation_;
   av_frame_unref(d.picture.get());

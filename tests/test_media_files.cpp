@@ -295,6 +295,21 @@ TEST_F(MediaFilesTest, PixelsThatAreNotSquareAreReadStretchedToTheirShownProport
   }
 }
 
+// A pixel aspect no camera uses (a PNG's pHYs of 2000:1, 1:40) is taken as square pixels, not
+// a stretch to thousands of times the picture's size.
+TEST_F(MediaFilesTest, APixelAspectNoCameraUsesIsTakenAsSquare) {
+  for (const char* aspect : {"2000/1", "1/40"}) {
+    SCOPED_TRACE(aspect);
+    const fs::path file = dir_ / "odd_aspect.mkv";
+    ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format(
+        "-f lavfi -i testsrc=size=160x120:rate=25 -frames:v 1 -vf setsar={} -c:v ffv1 {}", aspect, file.string())));
+    VideoFile video(file);
+    cv::Mat gray, cr;
+    ASSERT_TRUE(video.read(gray, cr));
+    EXPECT_EQ(gray.size(), cv::Size(160, 120));
+  }
+}
+
 TEST_F(MediaFilesTest, AnInterlacedPictureIsReadFromItsFirstFieldAlone) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   // The clip's first frame in one field and its negative in the other (the face and a very
