@@ -75,7 +75,7 @@ class PictureConverter {
     const bool full_range = picture.color_range == AVCOL_RANGE_JPEG || layout != format;
     const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);
     sws_setColorspaceDetails(scaler_, coefficients, full_range ? 1 : 0, coefficients, 1, 0, 1 << 16, 1 << 16);
-    gray.create(shown.height, shown.width, CV_8UC1);
+    padded_plane(gray, shown.height, shown.width);
     std::uint8_t* planes[] = {gray.data};
     const int strides[] = {static_cast<int>(gray.step[0])};
     return sws_scale(scaler_, lines.data, lines.linesize, 0, lines.height, planes, strides) == shown.height;
@@ -115,10 +115,12 @@ class PictureConverter {
   }
 
   /// A width × height picture of pixels `sample_aspect` wide for each unit of height, in square
-  /// pixels: the shorter side stretched (a ratio within 1 % of 1, or unknown, keeps the size).
+  /// pixels: the shorter side stretched. A ratio within 1 % of 1, or unknown, keeps the size, and
+  /// so does one no camera uses (outside 1:2 to 2:1; anamorphic video's are 0.9 to 1.8): a
+  /// file's pHYs of 2000:1 would ask for a picture thousands of times its size.
   static cv::Size shown_size(int width, int height, AVRational sample_aspect) {
     const double ratio = sample_aspect.num > 0 && sample_aspect.den > 0 ? av_q2d(sample_aspect) : 1.0;
-    if (std::abs(ratio - 1.0) < 0.01) return {width, height};
+    if (std::abs(ratio - 1.0) < 0.01 || ratio < 0.5 || ratio > 2.0) return {width, height};
     if (ratio > 1) return {static_cast<int>(std::lround(width * ratio)), height};
     return {width, static_cast<int>(std::lround(height / ratio))};
   }
@@ -160,12 +162,24 @@ class PictureConverter {
     const int* coefficients = sws_getCoefficients(SWS_CS_ITU601);  // full-range Cr, as JPEG codes it
     sws_setColorspaceDetails(chroma_scaler_, coefficients, 1, coefficients, 1, 0, 1 << 16, 1 << 16);
     const int rows = picture.height;
-    luma_and_cb_.create(2 * rows, picture.width, CV_8UC1);  // Y' above Cb; Cr straight into `cr`
-    cr.create(rows, picture.width, CV_8UC1);
+    padded_plane(luma_and_cb_, 2 * rows, picture.width);  // Y' above Cb; Cr straight into `cr`
+    padded_plane(cr, rows, picture.width);
     std::uint8_t* planes[] = {luma_and_cb_.ptr(0), luma_and_cb_.ptr(rows), cr.ptr(0)};
     const int strides[] = {static_cast<int>(luma_and_cb_.step[0]), static_cast<int>(luma_and_cb_.step[0]),
                            static_cast<int>(cr.step[0])};
     return sws_scale(chroma_scaler_, lines.data, lines.linesize, 0, lines.height, planes, strides) == rows;
+  }
+
+  /// `plane` as a rows × cols view of a buffer that libswscale can write into: its rows a
+  /// multiple of 64 bytes apart and one more such row after the last, as its SIMD code writes
+  /// whole blocks, past a row's end where the row is narrower than one (13 bytes past a picture
+  /// 1 pixel wide). Kept while the size holds.
+  static void padded_plane(cv::Mat& plane, int rows, int cols) {
+    const std::size_t stride = (static_cast<std::size_t>(cols) + 63) / 64 * 64;
+    if (plane.rows == rows && plane.cols == cols && plane.type() == CV_8UC1 && plane.step[0] == stride &&
+        plane.datalimit - plane.dataend >= static_cast<std::ptrdiff_t>(stride))
+      return;
+    plane = cv::Mat(rows + 1, static_cast<int>(stride), CV_8UC1)(cv::Rect(0, 0, cols, rows));
   }
 
   /// JPEG's full-range formats as the same layout in video range (libswscale takes the range

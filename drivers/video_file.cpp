@@ -3,14 +3,17 @@
 #include "drivers/ffmpeg_handles.hpp"
 
 #include <fmt/format.h>
+#include <opencv2/core.hpp>
 
 extern "C" {
 #include <libavutil/display.h>
+#include <libavutil/parseutils.h>
 }
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <string_view>
 
 namespace lipdrive {
 
@@ -28,8 +31,8 @@ DisplayOrientation orientation_of_matrix(const std::int32_t* matrix) {
   return {.turn = static_cast<Rotation>(((quarters % 4) + 4) % 4 * 90)};
 }
 
-/// An EXIF orientation tag (FFmpeg's JPEG and TIFF decoders put it in the picture's metadata
-/// as "Orientation"): 1 as stored, 2 mirrored, 3 turned 180°, 4 mirrored and turned 180°,
+/// An EXIF orientation tag (FFmpeg's JPEG decoder puts it in the picture's metadata as
+/// "Orientation"; its PNG and TIFF decoders do not, so their tags are not read): 1 as stored, 2 mirrored, 3 turned 180°, 4 mirrored and turned 180°,
 /// 5 mirrored and turned 270°, 6 turned 90°, 7 mirrored and turned 90°, 8 turned 270°
 /// (clockwise); anything else as stored.
 DisplayOrientation orientation_of_exif(const char* tag) {
@@ -43,6 +46,36 @@ DisplayOrientation orientation_of_exif(const char* tag) {
     case 8: return {.turn = Rotation::k270};
     default: return {};
   }
+}
+
+/// The frames `video` is to show, in periods of `rate`, from what the file says of the video
+/// stream itself, not the file's length (its sound may run on after the picture): the frames it
+/// declares (an AVI's header says so even where its index is lost), no more than its duration
+/// covers in an MP4 or QuickTime file (whose edit list may leave frames it holds unshown: a cut
+/// with -c copy between keyframes); else its duration; else a Matroska track's DURATION tag
+/// (where it ends) from its start; else the file's length where the video is all it holds.
+/// Durations rounded down: a frame one covers only in part may not be shown. 0 when unknown.
+std::int64_t shown_frames(const AVFormatContext& format, const AVStream& video, AVRational rate) {
+  const bool known_rate = rate.num > 0 && rate.den > 0;
+  const auto periods = [rate](std::int64_t length, AVRational time_base) {
+    return av_rescale_q_rnd(length, time_base, av_inv_q(rate), AV_ROUND_DOWN);
+  };
+  const bool duration = known_rate && video.duration > 0 && video.duration != AV_NOPTS_VALUE;
+  if (video.nb_frames > 0) {
+    const bool edited = std::string_view(format.iformat->name).starts_with("mov,");
+    return edited && duration ? std::min(video.nb_frames, periods(video.duration, video.time_base)) : video.nb_frames;
+  }
+  if (!known_rate) return 0;
+  if (duration) return periods(video.duration, video.time_base);
+  const AVDictionaryEntry* tag = av_dict_get(video.metadata, "DURATION", nullptr, AV_DICT_IGNORE_SUFFIX);
+  std::int64_t end = 0;
+  if (tag != nullptr && av_parse_time(&end, tag->value, 1) == 0) {
+    const std::int64_t start =
+        video.start_time == AV_NOPTS_VALUE ? 0 : av_rescale_q(video.start_time, video.time_base, AV_TIME_BASE_Q);
+    return periods(std::max<std::int64_t>(end - start, 0), AV_TIME_BASE_Q);
+  }
+  if (format.nb_streams == 1 && format.duration > 0) return periods(format.duration, AV_TIME_BASE_Q);
+  return 0;
 }
 
 }  // namespace
@@ -117,11 +150,7 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
 
   const AVRational rate = av_guess_frame_rate(format, video, nullptr);
   frame_rate_ = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 0;
-  if (video->nb_frames > 0) {
-    frame_count_ = video->nb_frames;
-  } else if (frame_rate_ > 0 && format->duration > 0) {
-    frame_count_ = std::llround(static_cast<double>(format->duration) / AV_TIME_BASE * frame_rate_);
-  }
+  frame_count_ = shown_frames(*format, *video, rate);
 }
 
 VideoFile::~VideoFile() = default;
@@ -132,7 +161,13 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   frame_index_ = std::max(frame_index_ + 1, d.timeline_index(frame_rate_));
   const AVRational sample_aspect =
       av_guess_sample_aspect_ratio(d.format.get(), d.format->streams[d.stream], d.picture.get());
-  const bool converted = d.planes.convert(*d.picture, gray, sample_aspect) && d.planes.convert_cr(*d.picture, cr);
+  bool converted = false;
+  try {
+    converted = d.planes.convert(*d.picture, gray, sample_aspect) && d.planes.convert_cr(*d.picture, cr);
+  } catch (const cv::Exception& e) {  // the planes' allocation: a picture too large for memory
+    av_frame_unref(d.picture.get());
+    d.fail(fmt::format("cannot hold the picture's planes: {}", e.what()));
+  }
   const AVDictionaryEntry* exif = av_dict_get(d.picture->metadata, "Orientation", nullptr, 0);
   orientation_ = exif != nullptr ? orientation_of_exif(exif->value) : stream_orientation_;
   av_frame_unref(d.picture.get());

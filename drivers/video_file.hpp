@@ -30,8 +30,8 @@ struct MediaError : std::runtime_error {
 
 /// How a file means its frames to be seen: mirrored left to right first, then turned
 /// clockwise by `turn`. From a video stream's display matrix
-/// (its turn to the nearest quarter; a flip in the matrix is not applied) or an image's EXIF
-/// orientation (1-8, mirrored ones included).
+/// (its turn to the nearest quarter; a flip in the matrix is not applied) or a JPEG's EXIF
+/// orientation (1-8, mirrored ones included; a PNG's or TIFF's is not read).
 struct DisplayOrientation {
   Rotation turn = Rotation::k0;
   bool mirrored = false;

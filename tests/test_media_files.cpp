@@ -17,6 +17,7 @@
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <array>
 #include <filesystem>
 #include <fstream>
@@ -294,6 +295,21 @@ TEST_F(MediaFilesTest, PixelsThatAreNotSquareAreReadStretchedToTheirShownProport
   }
 }
 
+// A pixel aspect no camera uses (a PNG's pHYs of 2000:1, 1:40) is taken as square pixels, not
+// a stretch to thousands of times the picture's size.
+TEST_F(MediaFilesTest, APixelAspectNoCameraUsesIsTakenAsSquare) {
+  for (const char* aspect : {"2000/1", "1/40"}) {
+    SCOPED_TRACE(aspect);
+    const fs::path file = dir_ / "odd_aspect.mkv";
+    ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format(
+        "-f lavfi -i testsrc=size=160x120:rate=25 -frames:v 1 -vf setsar={} -c:v ffv1 {}", aspect, file.string())));
+    VideoFile video(file);
+    cv::Mat gray, cr;
+    ASSERT_TRUE(video.read(gray, cr));
+    EXPECT_EQ(gray.size(), cv::Size(160, 120));
+  }
+}
+
 TEST_F(MediaFilesTest, AnInterlacedPictureIsReadFromItsFirstFieldAlone) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   // The clip's first frame in one field and its negative in the other (the face and a very
@@ -320,6 +336,61 @@ TEST_F(MediaFilesTest, AnInterlacedPictureIsReadFromItsFirstFieldAlone) {
     ASSERT_EQ(cr.size(), original_cr.size());
     EXPECT_LT(mean_abs_difference(gray, original), 4.0);  // the fields combed: 67
     EXPECT_LT(mean_abs_difference(cr, original_cr), 4.0);
+  }
+}
+
+// libswscale's SIMD code writes whole blocks, past the end of a row narrower than one: a red
+// picture a few pixels wide (an RGB PNG, a 4:2:0 JPEG) is read as itself, and nothing is written
+// past its planes, not even into a buffer of its exact size that the caller hands in.
+TEST_F(MediaFilesTest, APictureAFewPixelsWideIsReadWithoutWritingPastItsPlanes) {
+  constexpr int kRows = 600;
+  constexpr std::uint8_t kUntouched = 0xa5;
+  for (const int width : {1, 2, 3, 5, 17}) {
+    for (const char* format : {"rgb24", "yuvj420p"}) {
+      SCOPED_TRACE(fmt::format("{} px wide, {}", width, format));
+      const bool rgb = std::string(format) == "rgb24";
+      const fs::path file = dir_ / fmt::format("red{}.{}", width, rgb ? "png" : "jpg");
+      ASSERT_NO_FATAL_FAILURE(
+          ffmpeg(fmt::format("-f lavfi -i color=red:s=64x{} -frames:v 1 -vf scale={}:{},setsar=1 "
+                             "-pix_fmt {} {}",
+                             kRows, width, kRows, format, file.string())));
+      const std::size_t size = static_cast<std::size_t>(width) * kRows;
+      std::vector<std::uint8_t> gray_buffer(size + 64, kUntouched), cr_buffer(size + 64, kUntouched);
+      cv::Mat gray(kRows, width, CV_8UC1, gray_buffer.data()), cr(kRows, width, CV_8UC1, cr_buffer.data());
+      read_image(file, gray, cr);
+      EXPECT_EQ(std::count(gray_buffer.begin() + static_cast<std::ptrdiff_t>(size), gray_buffer.end(), kUntouched), 64);
+      EXPECT_EQ(std::count(cr_buffer.begin() + static_cast<std::ptrdiff_t>(size), cr_buffer.end(), kUntouched), 64);
+      ASSERT_EQ(gray.size(), cv::Size(width, kRows));
+      double low = 0, high = 0;
+      cv::minMaxLoc(gray, &low, &high);
+      EXPECT_NEAR(low, 76, 2) << "BT.601 luma of red";
+      EXPECT_NEAR(high, 76, 2);
+      ASSERT_FALSE(cr.empty());
+      EXPECT_NEAR(cv::mean(cr)[0], 255, 3) << "full-range Cr of red";
+    }
+  }
+}
+
+// The frames a video declares are its video stream's own: not the file's length where its sound
+// runs on after the picture, nor the frames an MP4 holds but its edit list leaves unshown (cut
+// with -c copy between keyframes); truncation is judged against that count.
+TEST_F(MediaFilesTest, AVideosFrameCountIsThatOfItsShownPicture) {
+  const fs::path longer_sound = dir_ / "longer_sound.mkv", whole = dir_ / "whole.mp4", cut = dir_ / "cut.mp4";
+  ASSERT_NO_FATAL_FAILURE(
+      ffmpeg(fmt::format("-f lavfi -i testsrc=size=160x120:rate=25 -f lavfi -i sine=duration=3 "
+                         "-t 3 -map 0:v -map 1:a -vf trim=duration=2 -c:v mpeg4 -c:a aac {}",
+                         longer_sound.string())));
+  ASSERT_NO_FATAL_FAILURE(
+      ffmpeg(fmt::format("-f lavfi -i testsrc=size=160x120:rate=25 -t 4 -c:v mpeg4 -g 50 {}", whole.string())));
+  ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-ss 1.3 -i {} -c copy {}", whole.string(), cut.string())));
+  for (const auto& [file, shown] : {std::pair{longer_sound, 50}, std::pair{whole, 100}, std::pair{cut, 67}}) {
+    SCOPED_TRACE(file.filename().string());
+    VideoFile video(file);
+    cv::Mat gray, cr;
+    int frames = 0;
+    while (video.read(gray, cr)) ++frames;
+    EXPECT_EQ(frames, shown);
+    EXPECT_EQ(video.frame_count(), shown);
   }
 }
 
