@@ -7,13 +7,11 @@
 
 extern "C" {
 #include <libavutil/display.h>
-#include <libavutil/parseutils.h>
 }
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <string_view>
 
 namespace lipdrive {
 
@@ -46,36 +44,6 @@ DisplayOrientation orientation_of_exif(const char* tag) {
     case 8: return {.turn = Rotation::k270};
     default: return {};
   }
-}
-
-/// The frames `video` is to show, in periods of `rate`, from what the file says of the video
-/// stream itself, not the file's length (its sound may run on after the picture): the frames it
-/// declares (an AVI's header says so even where its index is lost), no more than its duration
-/// covers in an MP4 or QuickTime file (whose edit list may leave frames it holds unshown: a cut
-/// with -c copy between keyframes); else its duration; else a Matroska track's DURATION tag
-/// (where it ends) from its start; else the file's length where the video is all it holds.
-/// Durations rounded down: a frame one covers only in part may not be shown. 0 when unknown.
-std::int64_t shown_frames(const AVFormatContext& format, const AVStream& video, AVRational rate) {
-  const bool known_rate = rate.num > 0 && rate.den > 0;
-  const auto periods = [rate](std::int64_t length, AVRational time_base) {
-    return av_rescale_q_rnd(length, time_base, av_inv_q(rate), AV_ROUND_DOWN);
-  };
-  const bool duration = known_rate && video.duration > 0 && video.duration != AV_NOPTS_VALUE;
-  if (video.nb_frames > 0) {
-    const bool edited = std::string_view(format.iformat->name).starts_with("mov,");
-    return edited && duration ? std::min(video.nb_frames, periods(video.duration, video.time_base)) : video.nb_frames;
-  }
-  if (!known_rate) return 0;
-  if (duration) return periods(video.duration, video.time_base);
-  const AVDictionaryEntry* tag = av_dict_get(video.metadata, "DURATION", nullptr, AV_DICT_IGNORE_SUFFIX);
-  std::int64_t end = 0;
-  if (tag != nullptr && av_parse_time(&end, tag->value, 1) == 0) {
-    const std::int64_t start =
-        video.start_time == AV_NOPTS_VALUE ? 0 : av_rescale_q(video.start_time, video.time_base, AV_TIME_BASE_Q);
-    return periods(std::max<std::int64_t>(end - start, 0), AV_TIME_BASE_Q);
-  }
-  if (format.nb_streams == 1 && format.duration > 0) return periods(format.duration, AV_TIME_BASE_Q);
-  return 0;
 }
 
 }  // namespace
@@ -150,7 +118,11 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
 
   const AVRational rate = av_guess_frame_rate(format, video, nullptr);
   frame_rate_ = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 0;
-  frame_count_ = shown_frames(*format, *video, rate);
+  if (video->nb_frames > 0) {
+    frame_count_ = video->nb_frames;
+  } else if (frame_rate_ > 0 && format->duration > 0) {
+    frame_count_ = std::llround(static_cast<double>(format->duration) / AV_TIME_BASE * frame_rate_);
+  }
 }
 
 VideoFile::~VideoFile() = default;

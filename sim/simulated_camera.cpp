@@ -220,11 +220,7 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
     if (expected_frames_ > 0 && reached < expected_frames_) {
       last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(reached) + " of " +
                     std::to_string(expected_frames_) + " (the file is damaged or truncated)";
-      // Nothing after the damage is readable: the replay ends here, or a looping one starts again.
-      if (options_.loop && position_ > 0)
-        rewind();
-      else
-        ended_ = true;
+      ended_ = true;  // nothing after the damage is readable, so the replay ends here
       return GrabStatus::kCorrupt;
     }
     return GrabStatus::kEndOfStream;

@@ -371,29 +371,6 @@ TEST_F(MediaFilesTest, APictureAFewPixelsWideIsReadWithoutWritingPastItsPlanes) 
   }
 }
 
-// The frames a video declares are its video stream's own: not the file's length where its sound
-// runs on after the picture, nor the frames an MP4 holds but its edit list leaves unshown (cut
-// with -c copy between keyframes); truncation is judged against that count.
-TEST_F(MediaFilesTest, AVideosFrameCountIsThatOfItsShownPicture) {
-  const fs::path longer_sound = dir_ / "longer_sound.mkv", whole = dir_ / "whole.mp4", cut = dir_ / "cut.mp4";
-  ASSERT_NO_FATAL_FAILURE(
-      ffmpeg(fmt::format("-f lavfi -i testsrc=size=160x120:rate=25 -f lavfi -i sine=duration=3 "
-                         "-t 3 -map 0:v -map 1:a -vf trim=duration=2 -c:v mpeg4 -c:a aac {}",
-                         longer_sound.string())));
-  ASSERT_NO_FATAL_FAILURE(
-      ffmpeg(fmt::format("-f lavfi -i testsrc=size=160x120:rate=25 -t 4 -c:v mpeg4 -g 50 {}", whole.string())));
-  ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-ss 1.3 -i {} -c copy {}", whole.string(), cut.string())));
-  for (const auto& [file, shown] : {std::pair{longer_sound, 50}, std::pair{whole, 100}, std::pair{cut, 67}}) {
-    SCOPED_TRACE(file.filename().string());
-    VideoFile video(file);
-    cv::Mat gray, cr;
-    int frames = 0;
-    while (video.read(gray, cr)) ++frames;
-    EXPECT_EQ(frames, shown);
-    EXPECT_EQ(video.frame_count(), shown);
-  }
-}
-
 TEST_F(MediaFilesTest, FfmpegsMessagesReachTheLogAsWholeLinesNamedByTheirComponent) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   std::ostringstream log;

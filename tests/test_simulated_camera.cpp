@@ -315,27 +315,6 @@ TEST_F(SimulatedCameraTest, ATruncatedVideoYieldsFramesThenCorruptThenEnd) {
   EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
 }
 
-TEST_F(SimulatedCameraTest, ALoopingReplayOfATruncatedVideoReportsTheDamageAndStartsAgain) {
-  const auto path = write_video(kFrames);
-  fs::resize_file(path, fs::file_size(path) / 2);
-
-  SimulatedCamera camera({.input = path, .loop = true});
-  Frame frame;
-  for (int pass = 0; pass < 2; ++pass) {
-    SCOPED_TRACE(fmt::format("pass {}", pass));
-    int delivered = 0;
-    GrabStatus status;
-    while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame) ++delivered;
-    EXPECT_GT(delivered, 0);
-    EXPECT_LT(delivered, kFrames);
-    EXPECT_EQ(status, GrabStatus::kCorrupt);
-    ASSERT_TRUE(camera.last_error().has_value());
-    EXPECT_NE(camera.last_error()->find(path.string()), std::string::npos);
-  }
-  ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame);
-  EXPECT_EQ(decoded_index(frame.gray), 0);
-}
-
 TEST_F(SimulatedCameraTest, AFrameTheRecorderDroppedIsAGapInTimeNotDamage) {
   // The recording without its frame 3, timestamps kept (FFmpeg as a recorder that dropped a
   // frame writes it): an AVI keeps the slot as an empty chunk and declares 20 frames, a
