@@ -1,5 +1,7 @@
 #include "core/model_builder.hpp"
 
+#include "core/model_format.hpp"
+
 #include <Eigen/SVD>
 
 #include <algorithm>
@@ -90,17 +92,17 @@ MorphableModel build_model(const ModelBuildInput& input, const ModelBuildOptions
   model.stddev = stddev.cast<float>();
   model.basis = basis.cast<float>();
   model.total_variance = static_cast<float>(eigenvalues.sum());
-  // The file stores it (and everything else) in 32-bit floats: coordinates whose variance does
-  // not fit one (beyond about 1e19 units, or differences below 1e-19) would write a model the
-  // loader refuses.
-  if (!std::isfinite(model.total_variance) || !(model.total_variance > 0) || !model.basis.allFinite() ||
-      !model.mean.allFinite())
-    throw ModelBuildError("the poses' coordinates are out of the range a model stores (32-bit floats): scale them to "
-                          "millimetres or metres");
   model.triangles = input.triangles;
   model.landmark_vertex = input.landmark_vertex;
   model.pose_names = input.pose_names;
   model.pose_coefficients = (stddev.cwiseInverse().asDiagonal() * (basis.transpose() * data.transpose())).cast<float>();
+  // The file holds 32-bit floats: coordinates beyond about 1e19 units (or differing by less
+  // than 1e-19) make a model the loader refuses; the loader's own checks say so here.
+  try {
+    validate_model_values(model, "the model built");
+  } catch (const ModelFormatError& e) {
+    throw ModelBuildError(std::string(e.what()) + ": scale the poses' coordinates to millimetres or metres");
+  }
   return model;
 }
 

@@ -169,7 +169,9 @@ void require_finite(const float* data, Eigen::Index count, const std::string& so
       throw ModelFormatError(source + ": non-finite number in " + field + " at index " + std::to_string(i));
 }
 
-void validate_values(const MorphableModel& m, const std::string& source) {
+}  // namespace
+
+void validate_model_values(const MorphableModel& m, const std::string& source) {
   if (!std::isfinite(m.total_variance) || m.total_variance < 0)
     throw ModelFormatError(source + ": total_variance is negative or not finite");
   require_finite(m.mean.data(), m.mean.size(), source, "mean");
@@ -199,8 +201,6 @@ void validate_values(const MorphableModel& m, const std::string& source) {
       throw ModelFormatError(source + ": expression name \"" + name + "\" appears twice");
   }
 }
-
-}  // namespace
 
 std::uint32_t model_format_version(const MorphableModel& model) {
   return model.has_expressions() ? kExpressionModelFormatVersion : kModelFormatVersion;
@@ -333,7 +333,7 @@ MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std:
     ByteReader<ModelFormatError> in(inflated, source_name);
     m = read_payload(in, h, source_name);
   }
-  validate_values(m, source_name);
+  validate_model_values(m, source_name);
   return m;
 }
 

@@ -95,6 +95,11 @@ std::vector<std::uint8_t> serialize_model(const MorphableModel& model);
 /// applied to another.
 std::uint32_t identity_fingerprint(const MorphableModel& model);
 
+/// The values deserialize_model() checks after decoding (finite numbers, positive stddev,
+/// triangles and landmarks within the vertices, expression names present and distinct), for a
+/// model about to be written: throws ModelFormatError starting with `source`.
+void validate_model_values(const MorphableModel& model, const std::string& source);
+
 /// Decodes and validates a model; source_name (usually the file path) starts
 /// every error message. Never reads outside `bytes`.
 MorphableModel deserialize_model(std::span<const std::uint8_t> bytes, const std::string& source_name);

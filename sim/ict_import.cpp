@@ -194,12 +194,12 @@ MorphableModel import_ict_model(const fs::path& dir, const IctImportOptions& opt
     model.expressions.col(static_cast<Eigen::Index>(e)) =
         displacement(dir / (indices.expressions[e] + ".obj"),
                      fmt::format("expression listed in {}", json_path.filename().string()), kept, shape_vertices);
-  // The model file's loader reads what is written here: its own validation (an expression name
-  // empty or listed twice, a landmark or triangle out of range, a number not finite) runs on
+  // The model file's loader reads what is written here: its own checks (an expression name
+  // empty or listed twice, a landmark or triangle out of range, a number not finite) run on
   // the model now, so a model the loader would refuse is never written. The names and the
   // landmark map come from vertex_indices.json, which the message names.
   try {
-    deserialize_model(serialize_model(model), json_path.string());
+    validate_model_values(model, json_path.string());
   } catch (const ModelFormatError& e) {
     throw IctImportError(e.what());
   }

@@ -142,7 +142,7 @@ TEST(ModelBuilder, RejectsUnusableInput) {
   // Coordinates whose variance a 32-bit float cannot hold: no file the loader would refuse.
   ModelBuildInput huge = input;
   for (Eigen::Matrix3Xf& pose : huge.pose_vertices) pose *= 1e20f;
-  EXPECT_THAT(build_error(huge), HasSubstr("out of the range a model stores"));
+  EXPECT_THAT(build_error(huge), AllOf(HasSubstr("not finite"), HasSubstr("scale the poses' coordinates")));
 }
 
 // --- `lipdrive model build | info` through the real binary ------------------
