@@ -36,6 +36,10 @@ void FrameProcessor::forget(FaceTracker::Next next) {
   automatic_ = first_automatic_;
   identity_ = Eigen::VectorXf();
   rest_ = first_rest_;
+  fit_on_identity(model);
+}
+
+void FrameProcessor::fit_on_identity(const MorphableModel& model) {
   fitter_ = Fitter(model, set_, settings_, identity_);
   reference_ = mouth_reference(model, identity_, std::span<const double>(rest_.data(), rest_.size()));
   fit_afresh_ = true;
@@ -55,9 +59,7 @@ void FrameProcessor::gather_identity_frame(const Landmarks2D& landmarks) {
   const MorphableModel& model = *automatic_.model;
   identity_ = fit_identity(model, set_, identity_frames_);
   rest_ = fit_rest_expression(model, set_, identity_frames_, identity_, settings_);
-  fitter_ = Fitter(model, set_, settings_, identity_);
-  reference_ = mouth_reference(model, identity_, std::span<const double>(rest_.data(), rest_.size()));
-  fit_afresh_ = true;
+  fit_on_identity(model);
   if (!all) return;
   spdlog::info(
       "identity: fitted from the first {} tracked frames in {:.1f} ms (no calibrated identity; "

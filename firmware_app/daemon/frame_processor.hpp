@@ -91,6 +91,8 @@ class FrameProcessor {
 
  private:
   void gather_identity_frame(const Landmarks2D& landmarks);
+  /// The fitter and the mouth reference on identity_ and rest_; the next fit starts afresh.
+  void fit_on_identity(const MorphableModel& model);
 
   LandmarkSet set_;
   FitSettings settings_;
