@@ -555,6 +555,16 @@ TEST_F(ProcessTest, MissingInputFailsWithItsName) {
   EXPECT_NE(run.stderr_text.find("nothing.avi"), std::string::npos) << run.stderr_text;
 }
 
+// A mistake on the command line is EX_USAGE (64) with CLI11's message; asking for help is not one.
+TEST_F(ProcessTest, CommandLineMistakesExitWithUsage) {
+  const ProcessRun unknown = run_process("--no-such-option x.avi", dir_);
+  EXPECT_EQ(unknown.exit_code, 64) << unknown.stderr_text;
+  EXPECT_NE(unknown.stderr_text.find("--no-such-option"), std::string::npos) << unknown.stderr_text;
+  const ProcessRun missing = run_process("", dir_);
+  EXPECT_EQ(missing.exit_code, 64) << missing.stderr_text;
+  EXPECT_EQ(run_process("--help > /dev/null", dir_).exit_code, 0);
+}
+
 TEST_F(ProcessTest, TextFileIsNotAVideo) {
   const fs::path text = dir_ / "notes.txt";
   std::ofstream(text) << "not a video\n";

@@ -5,12 +5,12 @@
 #include "command_run.hpp"
 #include "core/voice_training.hpp"
 #include "drivers/audio_file.hpp"
+#include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
 #include "serial_peers.hpp"  // test::TempDir
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -171,7 +171,7 @@ TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
   save_voice_model_file(model, synthetic_model());
   const test::CommandRun run =
       test::run_command(lipdrive(fmt::format("voice eval --voice {} --folds 3", model.string())));
-  EXPECT_EQ(run.exit_code, static_cast<int>(CLI::ExitCodes::ValidationError)) << run.output;
+  EXPECT_EQ(run.exit_code, kExitUsage) << run.output;
   EXPECT_NE(run.output.find("--test"), std::string::npos) << run.output;
   EXPECT_EQ(run.output.find("nan"), std::string::npos) << run.output;
 }

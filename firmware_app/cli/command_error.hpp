@@ -8,6 +8,7 @@
 namespace lipdrive {
 
 inline constexpr int kExitFailure = 1;
+inline constexpr int kExitUsage = 64;      // EX_USAGE: the command line is wrong
 inline constexpr int kExitDataError = 65;  // EX_DATAERR: input is malformed
 inline constexpr int kExitNoInput = 66;    // EX_NOINPUT: input missing or unreadable
 inline constexpr int kExitConfig = 78;     // EX_CONFIG: bad configuration

@@ -21,7 +21,9 @@ int run_cli(CLI::App& app, int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // CLI11 prints the message or the help; its own codes (105, 106, ...) mean nothing to a
+    // script or a unit file, so every mistake on the command line is EX_USAGE.
+    return app.exit(e) == 0 ? 0 : kExitUsage;
   } catch (const CommandError& e) {
     spdlog::error("{}", e.what());
     return e.exit_code();
