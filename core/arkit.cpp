@@ -61,13 +61,15 @@ void ArkitMap::from_expressions(std::span<const double> expressions, std::span<f
 }
 
 void set_arkit_signals(const ArkitMap& map, std::span<const double> expressions, DriveSignals& signals) {
+  static constexpr int kJawOpen = *arkit_index("jawOpen"), kMouthClose = *arkit_index("mouthClose"),
+                       kMouthFunnel = *arkit_index("mouthFunnel"), kMouthPucker = *arkit_index("mouthPucker");
   if (map.from_fit()) {
     map.from_expressions(expressions,
                          std::span<float, kNumArkit>(signals.values.data() + kFirstArkitSignal, kNumArkit));
+    float& close = signals[arkit_signal(kMouthClose)];
+    close = std::max(close, unit(signals[Signal::kSeal]) * signals[arkit_signal(kJawOpen)]);
     return;
   }
-  static constexpr int kJawOpen = *arkit_index("jawOpen"), kMouthClose = *arkit_index("mouthClose"),
-                       kMouthFunnel = *arkit_index("mouthFunnel"), kMouthPucker = *arkit_index("mouthPucker");
   const float open = unit(signals[Signal::kOpen]);
   const float protrusion = unit(signals[Signal::kProtrusion]);
   for (int a = 0; a < kNumArkit; ++a) signals[arkit_signal(a)] = 0;

@@ -85,7 +85,10 @@ class ArkitMap {
 /// Writes the 52 ARKit signals of a tracked frame into `signals` (core/drive_signals.hpp), from
 /// `expressions` (the fit's weights in the model's order, FitOutput::expressions) when the map
 /// comes from a model with expression shapes, else from the open, seal and protrusion signals
-/// already in `signals`. Allocates nothing.
+/// already in `signals`. Either way lips that touch are closed: from the fit, mouthClose is at
+/// least seal × jawOpen, which is what ARKit's mouthClose means (the lips together over an
+/// open jaw); lips pressed together can read apart in the landmarks, and the fit then opens
+/// the jaw to match them. Allocates nothing.
 void set_arkit_signals(const ArkitMap& map, std::span<const double> expressions, DriveSignals& signals);
 
 }  // namespace lipdrive

@@ -146,8 +146,9 @@ inline constexpr std::array<std::array<float, kNumArkitVisemeInputs + 1>, kNumVi
 }};
 // clang-format on
 
-/// The 16 viseme weights of a frame's 52 ARKit weights (a model with expression shapes): the
-/// table's weights, then the lips' seal as the pose match has it (transfer_to_bilabial), except
+/// The 16 viseme weights of a frame's 52 ARKit weights as fitted (a model with expression
+/// shapes; before set_arkit_signals closes touching lips with mouthClose, which the seal here
+/// stands for): the table's weights, then the lips' seal as the pose match has it (transfer_to_bilabial), except
 /// that lips a viseme already closes (W, Ooh-Q puckered; F-V the lower lip on the upper teeth)
 /// are that viseme's: the seal moved is seal · (1 − the largest of W, Ooh-Q and F-V).
 /// Allocates nothing.

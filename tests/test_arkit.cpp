@@ -167,6 +167,26 @@ TEST(ArkitSignals, FromTheFitMergedHalvesAreTheirMeanAndNothingIsAllocated) {
   EXPECT_FLOAT_EQ(weight(s, "browInnerUp"), 0.4f);
   EXPECT_FLOAT_EQ(weight(s, "cheekPuff"), 0);
   EXPECT_FLOAT_EQ(weight(s, "mouthPucker"), 0) << "no protrusion-derived weight for a fitted model";
+  EXPECT_FLOAT_EQ(weight(s, "mouthClose"), 0) << "lips apart (seal 0): the fit's mouthClose";
+}
+
+// Lips the pixels see touching are closed over the fitted jaw (ARKit's mouthClose: the lips
+// together over an open jaw), in proportion to the seal; a fitted mouthClose above that stays.
+TEST(ArkitSignals, LipsThatTouchAreClosedOverTheFittedJaw) {
+  const MorphableModel& model = ict_model();
+  const ArkitMap map(model.expression_names);
+  FitOutput::Expressions w = FitOutput::Expressions::Zero();
+  w[*model.expression_index("jawOpen")] = 0.4;
+  for (const auto& [seal, close] : {std::pair{1.0f, 0.4f}, std::pair{0.5f, 0.2f}, std::pair{0.0f, 0.0f}}) {
+    DriveSignals s = signals(0.1f, 0.3f, seal);
+    set_arkit_signals(map, std::span<const double>(w.data(), w.size()), s);
+    EXPECT_FLOAT_EQ(weight(s, "jawOpen"), 0.4f) << "the jaw as fitted";
+    EXPECT_FLOAT_EQ(weight(s, "mouthClose"), close) << "seal " << seal;
+  }
+  w[*model.expression_index("mouthClose")] = 0.3;
+  DriveSignals half = signals(0.1f, 0.3f, 0.5f);
+  set_arkit_signals(map, std::span<const double>(w.data(), w.size()), half);
+  EXPECT_FLOAT_EQ(weight(half, "mouthClose"), 0.3f) << "the fit's own closure, larger than 0.5 x 0.4";
 }
 
 }  // namespace
