@@ -146,9 +146,10 @@ std::size_t minimum_image_bytes(const V4l2Negotiated& negotiated) {
   }
 }
 
-std::string resolve_device_path(const std::string& device) {
-  return device.find('/') == std::string::npos ? kByIdDirectory + device : device;
-}
+/// The device node is not there (or went away while it was being opened).
+struct DeviceAbsent : SourceError {
+  using SourceError::SourceError;
+};
 
 /// The steps of opening a stream, sharing the device, its path (for messages) and the
 /// stream that collects the resources.
@@ -159,7 +160,12 @@ class StreamOpener {
   std::unique_ptr<V4l2Stream> open(const V4l2Options& options, V4l2Negotiated& negotiated) {
     // Non-blocking: grab() waits in poll() with its own timeout, and DQBUF never hangs.
     const int fd = system_.open(path_.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC);
-    if (fd == -1) fail_with_errno("cannot open the device");
+    if (fd == -1) {
+      const int error = errno;
+      const std::string reason = path_ + ": cannot open the device: " + error_text(error);
+      if (error == ENOENT || is_disconnect(error)) throw DeviceAbsent(reason);
+      throw SourceError(reason);
+    }
     stream_ = std::make_unique<V4l2Stream>(system_, fd);
 
     negotiated.card = query_capture_card();
@@ -363,6 +369,10 @@ int milliseconds_until(std::chrono::steady_clock::time_point deadline) {
 
 }  // namespace
 
+std::string v4l2_device_path(const std::string& device) {
+  return device.find('/') == std::string::npos ? kByIdDirectory + device : device;
+}
+
 PixelFormat parse_pixel_format(std::string_view name) {
   std::string upper(name);
   for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
@@ -390,9 +400,17 @@ std::string_view pixel_format_name(PixelFormat format) {
 V4l2Camera::V4l2Camera(V4l2Options options, SystemCalls& system)
     : options_(std::move(options)),
       system_(system),
-      path_(resolve_device_path(options_.device)),
+      path_(v4l2_device_path(options_.device)),
       reconnect_backoff_(options_.reconnect_initial, options_.reconnect_max) {
-  start_stream();
+  try {
+    start_stream();
+  } catch (const DeviceAbsent& absent) {
+    // Not there yet: a USB camera enumerated after the daemon started at boot, or unplugged.
+    // A camera away, as after an unplug: grab() opens it when it appears.
+    spdlog::warn("{}; waiting for it", absent.what());
+    reconnect_error_ = absent.what();
+    next_reconnect_ = Clock::now() + reconnect_backoff_.failed();
+  }
 }
 
 V4l2Camera::~V4l2Camera() = default;

@@ -97,17 +97,26 @@ struct V4l2Counters {
   std::uint64_t reconnects = 0;   // times it was reopened afterwards
 };
 
+/// The node V4l2Options::device names: the path itself, or a name's under /dev/v4l/by-id/.
+std::string v4l2_device_path(const std::string& device);
+
 class V4l2Camera final : public FrameSource {
  public:
   /// Opens, negotiates and starts streaming; throws SourceError naming the device and the
-  /// reason (no such device, not a streaming capture device, no supported format, ...).
+  /// reason (not a streaming capture device, no supported format, ...). A device node that is
+  /// not there (yet) is not an error: the camera starts disconnected (connected() false,
+  /// reconnect_error() says why) and grab() opens it when it appears, with the back-off of a
+  /// camera unplugged while streaming.
   explicit V4l2Camera(V4l2Options options, SystemCalls& system = real_system_calls());
   ~V4l2Camera() override;
   V4l2Camera(const V4l2Camera&) = delete;
   V4l2Camera& operator=(const V4l2Camera&) = delete;
 
   GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override;
-  double frame_rate() const override { return negotiated_.frame_rate; }
+  /// The stream's rate; before the first stream opened, the rate asked for (0 if none).
+  double frame_rate() const override {
+    return negotiated_.frame_rate > 0 ? negotiated_.frame_rate : options_.frame_rate;
+  }
   std::string describe() const override { return path_; }
 
   /// The format of the current (or, while disconnected, the last) stream.

@@ -122,12 +122,35 @@ TEST(V4l2Negotiation, NonCaptureDeviceIsAnErrorNamingTheDevice) {
   EXPECT_NE(error_of(config, options_for(config)).find("streaming"), std::string::npos);
 }
 
-TEST(V4l2Negotiation, MissingFakeDeviceIsAnErrorNamingIt) {
+// A camera not there when the daemon starts (a USB camera enumerated after it at boot) is a
+// camera away, named and waited for as after an unplug: frames flow once it appears.
+TEST(V4l2Disconnect, ACameraNotThereYetIsWaitedFor) {
   FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(config);
+  device.unplug();
   V4l2Options options = options_for(config);
-  options.device = "/dev/video7";
-  const std::string message = error_of(config, options);
-  EXPECT_NE(message.find("/dev/video7"), std::string::npos) << message;
+  options.frame_rate = 60;
+  V4l2Camera camera(options, device);
+  EXPECT_FALSE(camera.connected());
+  EXPECT_NE(camera.reconnect_error().find(config.path), std::string::npos) << camera.reconnect_error();
+  EXPECT_DOUBLE_EQ(camera.frame_rate(), 60) << "the rate asked for until a stream says otherwise";
+  Frame frame;
+  for (int attempt = 0; attempt < 5; ++attempt) EXPECT_EQ(camera.grab(frame, 20ms), GrabStatus::kDisconnected);
+  EXPECT_EQ(device.open_fd_count(), 0u);
+
+  device.replug();
+  GrabStatus status = GrabStatus::kDisconnected;
+  for (int attempt = 0; attempt < 20 && status == GrabStatus::kDisconnected; ++attempt)
+    status = camera.grab(frame, 20ms);
+  ASSERT_EQ(status, GrabStatus::kTimeout);  // opened; the sensor has not captured yet
+  EXPECT_TRUE(camera.connected());
+  EXPECT_TRUE(camera.reconnect_error().empty());
+  const cv::Mat expected = test_pattern(device.size(), 3);
+  ASSERT_TRUE(device.produce(expected));
+  ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
+  EXPECT_EQ(cv::norm(frame.gray, expected, cv::NORM_INF), 0);
+  EXPECT_TRUE(device.violations().empty());
 }
 
 TEST(V4l2Negotiation, AcceptsTheSizeAndRateTheDriverAdjustedTo) {
@@ -831,14 +854,20 @@ TEST(Chroma420, CrIsFoundInItsOwnBufferPlaneOrAfterTheLumaInASingleOne) {
   EXPECT_FALSE(locate_cr(Chroma420::kPairs, std::span<const BufferBytes>(), kStride, 640, 480).has_value());
 }
 
-TEST(V4l2RealSystemCalls, MissingDeviceThrowsNamingIt) {
+// Through the kernel's own calls: a node that is not there is waited for, named; one that is
+// no video device (/dev/null) is an error naming it.
+TEST(V4l2RealSystemCalls, AMissingDeviceIsWaitedForAndANonCameraThrows) {
   V4l2Options options;
   options.device = "/dev/video-does-not-exist";
+  V4l2Camera absent(options);
+  EXPECT_FALSE(absent.connected());
+  EXPECT_NE(absent.reconnect_error().find("/dev/video-does-not-exist"), std::string::npos) << absent.reconnect_error();
+  options.device = "/dev/null";
   try {
     V4l2Camera camera(options);
-    FAIL() << "opened a device that does not exist";
+    FAIL() << "opened /dev/null as a camera";
   } catch (const SourceError& error) {
-    EXPECT_NE(std::string(error.what()).find("/dev/video-does-not-exist"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("/dev/null"), std::string::npos) << error.what();
   }
 }
 

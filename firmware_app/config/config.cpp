@@ -210,7 +210,13 @@ void read_controls(Section controls, V4l2Controls& out) {
   controls.reject_unknown_keys();
 }
 
-void read_camera(Section camera, Config::Camera& config_camera, bool check_devices) {
+/// What of a camera must be there when the file is read.
+struct CameraNeeds {
+  bool recording = false;  // the clip or folder a simulated camera replays
+  bool device = false;     // a V4L2 camera's device node
+};
+
+void read_camera(Section camera, Config::Camera& config_camera, CameraNeeds needs) {
   const std::string type = camera.one_of("type", "sim", {"sim", "v4l2", "libcamera"});
   config_camera.type = type == "sim"    ? Config::Camera::Type::kSim
                        : type == "v4l2" ? Config::Camera::Type::kV4l2
@@ -249,20 +255,19 @@ void read_camera(Section camera, Config::Camera& config_camera, bool check_devic
     camera.fail("rotation", fmt::format("{} is not a quarter turn: 0, 90, 180 or 270 (degrees clockwise)", rotation));
   camera.reject_unknown_keys();
 
-  if (!check_devices) return;
-  if (config_camera.type == Config::Camera::Type::kSim)
+  if (needs.recording && config_camera.type == Config::Camera::Type::kSim)
     existing(camera, "input", sim.input, "file or folder");
-  else if (config_camera.type == Config::Camera::Type::kV4l2)
-    existing(camera, "device", v4l2.device, "device");
+  if (needs.device && config_camera.type == Config::Camera::Type::kV4l2)
+    existing(camera, "device", v4l2_device_path(v4l2.device), "device");
 }
 
 /// [side_camera]: the keys of [camera], plus whether it is used and where the face looks.
-void read_side_camera(Section side, Config& config, bool check_devices) {
+void read_side_camera(Section side, Config& config, CameraNeeds needs) {
   const bool enabled = side.boolean("enabled", false);
   const std::string facing = side.one_of("facing", "right", {"right", "left"});
   config.side_facing = facing == "right" ? ProfileFacing::kRight : ProfileFacing::kLeft;
   Config::Camera camera;
-  read_camera(side, camera, enabled && check_devices);
+  read_camera(side, camera, enabled ? needs : CameraNeeds{});
   config.side_rotation = camera.rotation;
   if (enabled) config.side_camera = camera;
 }
@@ -662,10 +667,13 @@ Config load_config(const fs::path& file, ConfigUse use) {
   read_log(top.table("log"), config);
   read_model(top.table("model"), config);
   read_tracker(top.table("tracker"), config);
-  // Recordings stand in for the cameras: a file written for the rig loads anywhere.
-  const bool check_devices = use == ConfigUse::kDaemon || use == ConfigUse::kCalibrateCamera;
-  read_camera(top.table("camera"), config.camera, check_devices);
-  read_side_camera(top.table("side_camera"), config, check_devices);
+  // Recordings stand in for the cameras: a file written for the rig loads anywhere. The daemon
+  // waits for a camera that is not there yet (a USB camera enumerated after it started at
+  // boot: drivers/v4l2_camera.hpp); calibrate on the camera needs it now.
+  const CameraNeeds needs{.recording = use == ConfigUse::kDaemon || use == ConfigUse::kCalibrateCamera,
+                          .device = use == ConfigUse::kCalibrateCamera};
+  read_camera(top.table("camera"), config.camera, needs);
+  read_side_camera(top.table("side_camera"), config, needs);
   read_recording(top.table("recording"), config);
   read_status(top.table("status"), config);
   read_scheduling(top.table("scheduling"), config);

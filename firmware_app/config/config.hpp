@@ -229,8 +229,8 @@ struct Config {
 /// [performer] names except where `lipdrive calibrate` writes it. Every other key is checked
 /// in every use.
 enum class ConfigUse {
-  kDaemon,           // `run`, `check-config`: the cameras and the profile
-  kCalibrateCamera,  // `calibrate` on the configured camera: the cameras
+  kDaemon,           // `run`, `check-config`: the replayed recordings and the profile (cameras are waited for)
+  kCalibrateCamera,  // `calibrate` on the configured camera: the replayed recordings and the cameras
   kCalibrateInput,   // `calibrate --input`: a recording stands in for the camera
   kOffline,          // `process`, `voice train`, `voice eval`: recordings; the profile
 };
