@@ -7,11 +7,13 @@
 
 extern "C" {
 #include <libavutil/display.h>
+#include <libavutil/parseutils.h>
 }
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <string_view>
 
 namespace lipdrive {
 
@@ -46,6 +48,33 @@ DisplayOrientation orientation_of_exif(const char* tag) {
   }
 }
 
+/// The frames the file states exactly that its picture shows, in periods of `rate`; 0 where it
+/// states none. Its declared frames (an AVI's header says so even where its index is lost), no
+/// more than its duration covers in an MP4 or QuickTime file (whose edit list may leave frames
+/// it holds unshown: a cut with -c copy between keyframes); else a Matroska track's DURATION tag
+/// (where it ends) from its start. Not the file's length, which its sound may outlast, nor the
+/// duration FFmpeg estimates from timestamps where a file states none (an MPEG program or
+/// transport stream: it may be a frame's). Durations rounded down: a frame one covers only in
+/// part may not be shown.
+std::int64_t stated_frames(const AVFormatContext& format, const AVStream& video, AVRational rate) {
+  const bool known_rate = rate.num > 0 && rate.den > 0;
+  const auto periods = [rate](std::int64_t length, AVRational time_base) {
+    return av_rescale_q_rnd(length, time_base, av_inv_q(rate), AV_ROUND_DOWN);
+  };
+  if (video.nb_frames > 0) {
+    const bool edited = std::string_view(format.iformat->name).starts_with("mov,");
+    return edited && known_rate && video.duration > 0
+               ? std::min(video.nb_frames, periods(video.duration, video.time_base))
+               : video.nb_frames;
+  }
+  const AVDictionaryEntry* tag = av_dict_get(video.metadata, "DURATION", nullptr, AV_DICT_IGNORE_SUFFIX);
+  std::int64_t end = 0;
+  if (!known_rate || tag == nullptr || av_parse_time(&end, tag->value, 1) != 0) return 0;
+  const std::int64_t start =
+      video.start_time == AV_NOPTS_VALUE ? 0 : av_rescale_q(video.start_time, video.time_base, AV_TIME_BASE_Q);
+  return periods(std::max<std::int64_t>(end - start, 0), AV_TIME_BASE_Q);
+}
+
 }  // namespace
 
 /// The demuxer, the decoder and the packet and picture they share.
@@ -57,7 +86,9 @@ struct VideoFile::Decoder {
   ffmpeg::Frame picture{av_frame_alloc()};
   ffmpeg::PictureConverter planes;
   int stream = -1;
-  bool draining = false;  // the demuxer is at its end; the decoder gives back what it holds
+  bool draining = false;    // the demuxer is at its end; the decoder gives back what it holds
+  bool packet_cut = false;  // the packet read last came short of the size the file gave it
+  std::string damage;       // what went wrong where the pictures ended; empty at a clean end
 
   [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
 
@@ -71,19 +102,29 @@ struct VideoFile::Decoder {
     return std::llround(static_cast<double>(pts - start) * av_q2d(video->time_base) * frame_rate);
   }
 
-  /// The next decoded picture; false at the end (or where a damaged file stops decoding).
+  /// The next decoded picture; false at the end (or where a damaged file stops decoding, saying
+  /// why in `damage`).
   bool next() {
     for (;;) {
       const int received = avcodec_receive_frame(codec.get(), picture.get());
       if (received == 0) return true;
-      if (received != AVERROR(EAGAIN)) return false;  // AVERROR_EOF, or the decoder gave up
+      if (received != AVERROR(EAGAIN)) {
+        if (received != AVERROR_EOF) damage = fmt::format("cannot decode further: {}", error_text(received));
+        return false;
+      }
       if (draining) return false;
       const int read = av_read_frame(format.get(), packet.get());
       if (read < 0) {
+        // The file ending inside a packet is a file cut short, in any container.
+        if (read != AVERROR_EOF)
+          damage = fmt::format("cannot read further: {}", error_text(read));
+        else if (packet_cut)
+          damage = "the file ends inside a packet";
         draining = true;
         avcodec_send_packet(codec.get(), nullptr);
         continue;
       }
+      packet_cut = (packet->flags & AV_PKT_FLAG_CORRUPT) != 0;
       // A packet the decoder rejects is skipped, as a player does; the rest still decodes.
       if (packet->stream_index == stream) avcodec_send_packet(codec.get(), packet.get());
       av_packet_unref(packet.get());
@@ -123,13 +164,22 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
   } else if (frame_rate_ > 0 && format->duration > 0) {
     frame_count_ = std::llround(static_cast<double>(format->duration) / AV_TIME_BASE * frame_rate_);
   }
+  stated_frames_ = stated_frames(*format, *video, rate);
 }
 
 VideoFile::~VideoFile() = default;
 
+const std::string& VideoFile::damage() const { return decoder_->damage; }
+
 bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   Decoder& d = *decoder_;
-  if (!d.next()) return false;
+  if (!d.next()) {
+    // How far the frames reached on the file's timeline: slots a recorder left empty are not
+    // missing.
+    if (d.damage.empty() && frame_index_ + 1 < stated_frames_)
+      d.damage = fmt::format("the file states {} frames", stated_frames_);
+    return false;
+  }
   frame_index_ = std::max(frame_index_ + 1, d.timeline_index(frame_rate_));
   const AVRational sample_aspect =
       av_guess_sample_aspect_ratio(d.format.get(), d.format->streams[d.stream], d.picture.get());

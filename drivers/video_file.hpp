@@ -48,7 +48,8 @@ class VideoFile {
 
   /// Frames per second the file declares (FFmpeg's guess); 0 when it declares none.
   double frame_rate() const { return frame_rate_; }
-  /// Frames the file declares (or its duration implies); 0 when unknown.
+  /// Frames the file declares (or its duration implies); 0 when unknown. One pass's length, no
+  /// measure of damage (damage() is): the duration may be the sound's, or FFmpeg's estimate.
   std::int64_t frame_count() const { return frame_count_; }
   /// Where the frame read last lies on the file's timeline, counted in frame periods from the
   /// stream's start (its timestamp times the frame rate, rounded); -1 before the first read. A
@@ -59,8 +60,16 @@ class VideoFile {
 
   /// The next frame's luma into `gray` and its Cr into `cr` (empty without colour; buffers kept
   /// while the size holds). False at the end of the file, and where the rest of a damaged file
-  /// cannot be decoded.
+  /// cannot be decoded (damage()).
   bool read(cv::Mat& gray, cv::Mat& cr);
+  /// Once read() has returned false: what shows the file damaged or truncated there, empty where
+  /// it simply ended. Judged from what went wrong while reading (the demuxer or the decoder
+  /// failed; the file ends inside a packet) or, where the file states exactly how many frames
+  /// its picture shows (an AVI's or MP4's frame count, as an MP4's edit list shows them; a
+  /// Matroska track's DURATION), frames ending short of it. Not from the file's length, which
+  /// its sound may outlast, nor from durations FFmpeg estimates (an MPEG program or transport
+  /// stream states none: one cut between its packets ends as a shorter one does).
+  const std::string& damage() const;
   /// How the frame read last is meant to be seen.
   DisplayOrientation orientation() const { return orientation_; }
 
@@ -69,6 +78,7 @@ class VideoFile {
   std::unique_ptr<Decoder> decoder_;
   double frame_rate_ = 0;
   std::int64_t frame_count_ = 0;
+  std::int64_t stated_frames_ = 0;  // the picture's frames as the file states them exactly; 0: none
   std::int64_t frame_index_ = -1;
   DisplayOrientation stream_orientation_, orientation_;
 };

@@ -92,13 +92,12 @@ void SimulatedCamera::open_video() {
   }
   const double fps = video_->frame_rate();
   frame_rate_ = options_.replay_rate > 0 ? options_.replay_rate : fps > 0 ? fps : options_.image_frame_rate;
-  expected_frames_ = video_->frame_count();
 }
 
 std::string SimulatedCamera::describe() const { return "sim:" + options_.input.string(); }
 
 double SimulatedCamera::duration_s() const {
-  const auto frames = kind_ == Kind::kVideo ? expected_frames_ : static_cast<std::int64_t>(images_.size());
+  const auto frames = kind_ == Kind::kVideo ? video_->frame_count() : static_cast<std::int64_t>(images_.size());
   return static_cast<double>(frames) / frame_rate_;
 }
 
@@ -214,16 +213,11 @@ GrabStatus SimulatedCamera::read_frame(Frame& frame) {
 
 GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
   if (!video_->read(gray_, cr_)) {
-    // How far the frames reached on the file's timeline, against the frames it declares: slots
-    // a recorder left empty are not missing.
-    const std::int64_t reached = video_->frame_index() + 1;
-    if (expected_frames_ > 0 && reached < expected_frames_) {
-      last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(reached) + " of " +
-                    std::to_string(expected_frames_) + " (the file is damaged or truncated)";
-      ended_ = true;  // nothing after the damage is readable, so the replay ends here
-      return GrabStatus::kCorrupt;
-    }
-    return GrabStatus::kEndOfStream;
+    if (video_->damage().empty()) return GrabStatus::kEndOfStream;
+    last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(video_->frame_index() + 1) + ": " +
+                  video_->damage() + " (the file is damaged or truncated)";
+    ended_ = true;  // nothing after the damage is readable, so the replay ends here
+    return GrabStatus::kCorrupt;
   }
   show(video_->orientation(), frame);
   // Slots the recorder left empty before this frame are slots of the replay too.

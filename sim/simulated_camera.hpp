@@ -55,10 +55,10 @@ class SimulatedCamera : public FrameSource {
   /// first grab() and resumes after an outage where it stopped.
   explicit SimulatedCamera(SimulatedCameraOptions options, ReplayClock* clock = nullptr);
 
-  /// Delivers the next frame. A video whose decoding stops before the container's frame
-  /// count yields kCorrupt once (details in last_error()), then ends; an undecodable
-  /// image inside a folder yields kCorrupt for that frame only. In real time, kTimeout
-  /// when the next frame is due later than `timeout`.
+  /// Delivers the next frame. A video whose reading ends in damage (VideoFile::damage(): a
+  /// file cut short, not one whose sound outlasts its picture) yields kCorrupt once (details
+  /// in last_error()), then ends; an undecodable image inside a folder yields kCorrupt for
+  /// that frame only. In real time, kTimeout when the next frame is due later than `timeout`.
   GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override;
   double frame_rate() const override { return frame_rate_; }
   std::string describe() const override;
@@ -106,7 +106,6 @@ class SimulatedCamera : public FrameSource {
 
   std::unique_ptr<VideoFile> video_;  // the open video (reopened to rewind)
   double frame_rate_ = 0;
-  std::int64_t expected_frames_ = 0;  // container's frame count, 0 if unknown
   cv::Mat gray_, cr_;                 // decoded luma and Cr planes, reused across frames
   cv::Mat turned_gray_, turned_cr_;   // the same turned as the file means them to be seen
 

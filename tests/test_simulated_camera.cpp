@@ -61,6 +61,15 @@ class SimulatedCameraTest : public ::testing::Test {
     return path;
   }
 
+  // `video` with sound a second longer than its picture, coded by `codecs` (FFmpeg's options,
+  // the container's -f among them) into `out`.
+  static void add_longer_sound(const fs::path& video, const std::string& codecs, const fs::path& out) {
+    const test::CommandRun run = test::run_command(
+        fmt::format("ffmpeg -v error -y -i {} -f lavfi -i sine=duration={} -map 0:v -map 1:a -q:v 2 {} {}",
+                    video.string(), kFrames / kFps + 1, codecs, out.string()));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+  }
+
   fs::path dir_;
 };
 
@@ -313,6 +322,79 @@ TEST_F(SimulatedCameraTest, ATruncatedVideoYieldsFramesThenCorruptThenEnd) {
   ASSERT_TRUE(camera.last_error().has_value());
   EXPECT_NE(camera.last_error()->find(path.string()), std::string::npos);
   EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+}
+
+// What is shown of a clip is its picture: sound running on after the last frame, or frames an
+// MP4's edit list leaves unshown (a cut with -c copy between keyframes), are not damage.
+TEST_F(SimulatedCameraTest, AVideoWhoseSoundOutlastsItsPictureEndsCleanly) {
+  const auto source = write_video(kFrames);
+  for (const std::string codecs :
+       {"-c:v mpeg4 -c:a aac -f matroska", "-c:v mpeg1video -c:a mp2 -f mpeg", "-c:v mpeg2video -c:a mp2 -f mpegts",
+        "-c:v mpeg4 -c:a aac -f mp4", "-c:v mjpeg -c:a pcm_s16le -f avi", "-c:v flv -c:a aac -f flv"}) {
+    SCOPED_TRACE(codecs);
+    const fs::path clip = dir_ / "longer_sound";
+    ASSERT_NO_FATAL_FAILURE(add_longer_sound(source, codecs, clip));
+    SimulatedCamera camera({.input = clip});
+    Frame frame;
+    int delivered = 0;
+    GrabStatus status;
+    while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame)
+      EXPECT_EQ(decoded_index(frame.gray), delivered++);
+    EXPECT_EQ(delivered, kFrames);
+    EXPECT_EQ(status, GrabStatus::kEndOfStream);
+    EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
+  }
+}
+
+TEST_F(SimulatedCameraTest, AnMp4CutWithoutReencodingShowsItsCutAndEndsCleanly) {
+  // Keyframes 0 and 10; the cut from frame 3 to 12 keeps frames 0-2 for the decoder, which
+  // the edit list leaves unshown.
+  const auto source = write_video(kFrames);
+  const fs::path whole = dir_ / "whole.mp4", cut = dir_ / "cut.mp4";
+  ASSERT_EQ(
+      test::run_command(fmt::format("ffmpeg -v error -y -i {} -c:v mpeg4 -q:v 2 -g 10 -sc_threshold 1000000000 {}",
+                                    source.string(), whole.string()))
+          .exit_code,
+      0);
+  ASSERT_EQ(test::run_command(
+                fmt::format("ffmpeg -v error -y -ss 0.12 -i {} -t 0.4 -c copy {}", whole.string(), cut.string()))
+                .exit_code,
+            0);
+  SimulatedCamera camera({.input = cut});
+  Frame frame;
+  int delivered = 0;
+  GrabStatus status;
+  while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame)
+    EXPECT_EQ(decoded_index(frame.gray), 3 + delivered++);
+  EXPECT_EQ(delivered, 10);
+  EXPECT_EQ(status, GrabStatus::kEndOfStream);
+  EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
+}
+
+// A file cut short is damage, its sound running on or not: the frames before the cut, then
+// kCorrupt naming the file, then the end. Told by the frames its container states (a Matroska
+// track's DURATION, an MP4's or AVI's frame count) or, in an FLV file, which states none, by
+// the packet the cut falls inside.
+TEST_F(SimulatedCameraTest, AVideoCutShortYieldsFramesThenCorruptThenEnd) {
+  const auto source = write_video(kFrames);
+  for (const std::string codecs : {"-c:v mpeg4 -c:a aac -f matroska", "-c:v mpeg4 -c:a aac -movflags +faststart -f mp4",
+                                   "-c:v mjpeg -c:a pcm_s16le -f avi", "-c:v flv -c:a aac -f flv"}) {
+    SCOPED_TRACE(codecs);
+    const fs::path clip = dir_ / "cut_short";
+    ASSERT_NO_FATAL_FAILURE(add_longer_sound(source, codecs, clip));
+    fs::resize_file(clip, fs::file_size(clip) / 2);
+    SimulatedCamera camera({.input = clip});
+    Frame frame;
+    int delivered = 0;
+    GrabStatus status;
+    while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame) ++delivered;
+    EXPECT_LT(delivered, kFrames);
+    EXPECT_EQ(status, GrabStatus::kCorrupt);
+    ASSERT_TRUE(camera.last_error().has_value());
+    EXPECT_NE(camera.last_error()->find(clip.string()), std::string::npos) << *camera.last_error();
+    EXPECT_NE(camera.last_error()->find("damaged or truncated"), std::string::npos) << *camera.last_error();
+    EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+  }
 }
 
 TEST_F(SimulatedCameraTest, AFrameTheRecorderDroppedIsAGapInTimeNotDamage) {
