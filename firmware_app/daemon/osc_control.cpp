@@ -1,6 +1,7 @@
 #include "firmware_app/daemon/osc_control.hpp"
 
 #include "core/osc_addresses.hpp"
+#include "drivers/thread_scheduling.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -27,7 +28,9 @@ std::string file_name_part(std::string_view text) {
 }  // namespace
 
 OscControl::OscControl(const std::string& address, int port, DriveControl& control)
-    : receiver_(address, port), control_(control), thread_(&OscControl::run, this) {}
+    : receiver_(address, port), control_(control), thread_(&OscControl::run, this) {
+  name_thread(thread_, "lipdrive-oscctl");
+}
 
 OscControl::~OscControl() {
   stop_ = true;

@@ -1,5 +1,6 @@
 #include "firmware_app/daemon/take_recorder.hpp"
 
+#include "drivers/thread_scheduling.hpp"
 #include "firmware_app/tables/measures_csv.hpp"
 
 #include <spdlog/spdlog.h>
@@ -36,7 +37,9 @@ TakeRecorder::TakeRecorder(std::string source, std::chrono::milliseconds flush_i
       flush_interval_(flush_interval),
       timecode_rate_(timecode_rate),
       sound_(sound),
-      thread_(&TakeRecorder::run, this) {}
+      thread_(&TakeRecorder::run, this) {
+  name_thread(thread_, "lipdrive-take");
+}
 
 TakeRecorder::~TakeRecorder() {
   active_ = false;

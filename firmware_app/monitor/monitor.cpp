@@ -44,7 +44,7 @@ constexpr time_t kIoTimeoutS = 1;
 class WorkerPool final : public httplib::TaskQueue {
  public:
   explicit WorkerPool(int workers) : capacity_(static_cast<std::size_t>(workers)) {
-    for (int i = 0; i < workers; ++i) threads_.emplace_back([this] { work(); });
+    for (int i = 0; i < workers; ++i) name_thread(threads_.emplace_back([this] { work(); }), "lipdrive-httpw");
   }
 
   void enqueue(std::function<void()> connection) override {
