@@ -1,11 +1,11 @@
 #include "sim/ict_import.hpp"
 
 #include "core/model_format.hpp"
+#include "drivers/obj_file.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <tiny_obj_loader.h>
 
 #include <algorithm>
 #include <fstream>
@@ -24,28 +24,27 @@ struct ObjFile {
   std::vector<Triangle> triangles;
 };
 
-/// An OBJ's vertices (mm) and, when `faces`, its polygons fanned into triangles (tinyobjloader).
+/// An OBJ's vertices (mm) and, when `faces`, its polygons fanned into triangles.
 ObjFile read_ict_obj(const fs::path& path, bool faces, const std::string& why) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec))
     throw IctImportError(fmt::format("{}: no such OBJ file ({})", path.string(), why));
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = faces;
-  config.vertex_color = false;
-  config.mtl_search_path = path.parent_path().string();
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path.string(), config))
-    throw IctImportError(fmt::format("{}: invalid OBJ: {}", path.string(), reader.Error()));
-  const auto& positions = reader.GetAttrib().vertices;
+  ObjContents contents;
+  try {
+    contents = read_obj_file(path, faces);
+  } catch (const ObjFileError& e) {
+    throw IctImportError(e.what());
+  }
+  const auto& positions = contents.positions;
   ObjFile obj;
   obj.vertices.resize(3, static_cast<Eigen::Index>(positions.size() / 3));
   for (std::size_t i = 0; i < positions.size(); ++i)
     obj.vertices.data()[i] = kMillimetresPerCentimetre * static_cast<float>(positions[i]);
   if (!faces) return obj;
-  for (const auto& shape : reader.GetShapes())
-    for (std::size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
+  for (const auto& shape : contents.shapes)
+    for (std::size_t f = 0; f < shape.face_sizes.size(); ++f) {
       Triangle t{};
-      for (int c = 0; c < 3; ++c) t[c] = static_cast<std::uint32_t>(shape.mesh.indices[3 * f + c].vertex_index);
+      for (int c = 0; c < 3; ++c) t[c] = static_cast<std::uint32_t>(shape.corners[3 * f + c]);
       obj.triangles.push_back(t);
     }
   return obj;

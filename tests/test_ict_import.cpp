@@ -144,6 +144,25 @@ TEST_F(IctImportTest, AShapeFileWithAnotherVertexCountIsNamed) {
   EXPECT_THAT(import_error(), HasSubstr((dir_ / "jawOpen.obj").string()));
 }
 
+TEST_F(IctImportTest, AVertexCoordinateThatIsNotANumberIsNamedWithItsFileAndLine) {
+  // The parser alone reads "nan" as 0 and "1e999" as infinity, in the neutral and in a shape alike.
+  const auto replace_line = [](const fs::path& path, int line, const std::string& text) {
+    std::ifstream in(path);
+    std::string lines;
+    int number = 0;
+    for (std::string current; std::getline(in, current);) lines += (++number == line ? text : current) + "\n";
+    in.close();
+    std::ofstream(path) << lines;
+  };
+  replace_line(dir_ / "identity001.obj", 10, "v 1 nan 2");
+  EXPECT_THAT(import_error(),
+              HasSubstr((dir_ / "identity001.obj").string() + ":10: vertex 10: y = 'nan' is not a number"));
+  write_obj(dir_ / "identity001.obj", neutral_, false);
+  replace_line(dir_ / "generic_neutral_mesh.obj", 20, "v 1e999 0 0");
+  EXPECT_THAT(import_error(),
+              HasSubstr((dir_ / "generic_neutral_mesh.obj").string() + ":20: vertex 20: x = '1e999' is not a number"));
+}
+
 TEST_F(IctImportTest, ALandmarkOutsideTheImportedVerticesIsNamed) {
   write_indices(kExpressionNames, kKeep + 5);
   EXPECT_THAT(import_error(), AllOf(HasSubstr((dir_ / "vertex_indices.json").string()), HasSubstr("landmark 51"),

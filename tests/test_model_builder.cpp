@@ -18,6 +18,8 @@
 #include <iostream>
 #include <sstream>
 #include <unistd.h>
+#include <utility>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -211,6 +213,38 @@ TEST_F(ModelCommandTest, RejectsAPoseWithADifferentTriangleList) {
   write_obj(dir_ / "poses" / "pose2.obj", mesh);
   EXPECT_EQ(run(build_args()), kExitDataError);
   EXPECT_THAT(output_, AllOf(HasSubstr("pose2.obj: triangle list differs"), HasSubstr("face 2")));
+}
+
+TEST_F(ModelCommandTest, AVertexCoordinateThatIsNotANumberIsAnErrorNamingFileAndLine) {
+  // The parser alone reads each of these as 0, as the number's beginning or as infinity.
+  const std::string pose = (dir_ / "poses" / "pose1.obj").string();
+  const std::string text = [&] {
+    std::ostringstream s;
+    s << std::ifstream(pose).rdbuf();
+    return s.str();
+  }();
+  const std::size_t third_line = text.find('\n', text.find('\n') + 1) + 1;
+  const std::size_t third_line_end = text.find('\n', third_line);
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"v nan 1 2", ": x = 'nan' is not a number a 32-bit float holds"},
+      {"v 1e999 0 0", ": x = '1e999' is not"},
+      {"v 0 abc 0", ": y = 'abc' is not"},
+      {"v 0 0 1.5cm", ": z = '1.5cm' is not"},
+      {"v 0 0 0x1p3", ": z = '0x1p3' is not"},
+      {"v 0 0 1e39", ": z = '1e39' is not"},
+      {"v 1 2", " has no z coordinate"},
+  };
+  for (const auto& [vertex, reason] : bad) {
+    SCOPED_TRACE(vertex);
+    std::ofstream(pose) << text.substr(0, third_line) << vertex << text.substr(third_line_end);
+    EXPECT_EQ(run(build_args()), kExitDataError) << output_;
+    EXPECT_THAT(output_, HasSubstr(pose + ":3: vertex 3" + reason));
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "out.lpm"));
+  }
+  // Numbers in the forms OBJ writers use are read.
+  std::ofstream(pose) << text.substr(0, third_line) << "v\t+1.5e+01 -.25  7." << text.substr(third_line_end);
+  EXPECT_EQ(read_obj(pose).vertices.col(2), Eigen::Vector3f(15.f, -0.25f, 7.f));
+  ASSERT_EQ(run(build_args()), 0) << output_;
 }
 
 TEST_F(ModelCommandTest, ALandmarkMappedTwiceIsAnError) {

@@ -2,10 +2,10 @@
 
 #include "core/model_format.hpp"
 #include "core/voice_model_format.hpp"
+#include "drivers/obj_file.hpp"
 #include "firmware_app/cli/command_error.hpp"
 
 #include <fmt/format.h>
-#include <tiny_obj_loader.h>
 #include <toml++/toml.h>
 
 #include <charconv>
@@ -100,22 +100,20 @@ Mesh read_obj(const std::filesystem::path& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw CommandError(fmt::format("{}: no such OBJ file", path.string()), kExitNoInput);
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = false;  // a quad would silently change the triangle list between poses
-  config.vertex_color = false;
-  config.mtl_search_path = path.parent_path().string();
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path.string(), config))
-    throw CommandError(fmt::format("{}: invalid OBJ: {}", path.string(), reader.Error()), kExitDataError);
+  ObjContents obj;
+  try {
+    obj = read_obj_file(path, false);  // not triangulated: a quad would silently change the triangle list between poses
+  } catch (const ObjFileError& e) {
+    throw CommandError(e.what(), kExitDataError);
+  }
 
-  const auto& positions = reader.GetAttrib().vertices;
   Mesh mesh;
-  mesh.vertices.resize(3, static_cast<Eigen::Index>(positions.size() / 3));
-  for (std::size_t i = 0; i < positions.size(); ++i) mesh.vertices.data()[i] = static_cast<float>(positions[i]);
+  mesh.vertices.resize(3, static_cast<Eigen::Index>(obj.positions.size() / 3));
+  for (std::size_t i = 0; i < obj.positions.size(); ++i) mesh.vertices.data()[i] = static_cast<float>(obj.positions[i]);
 
   const auto vertex_count = static_cast<std::size_t>(mesh.vertices.cols());
-  for (const auto& shape : reader.GetShapes()) {
-    const auto& faces = shape.mesh.num_face_vertices;
+  for (const auto& shape : obj.shapes) {
+    const auto& faces = shape.face_sizes;
     for (std::size_t f = 0; f < faces.size(); ++f) {
       if (faces[f] != 3)
         throw CommandError(fmt::format("{}: face {} of shape '{}' has {} vertices; only triangles are supported",
@@ -123,7 +121,7 @@ Mesh read_obj(const std::filesystem::path& path) {
                            kExitDataError);
       Triangle t{};
       for (int c = 0; c < 3; ++c) {
-        const int index = shape.mesh.indices[3 * f + c].vertex_index;
+        const int index = shape.corners[3 * f + c];
         if (index < 0 || static_cast<std::size_t>(index) >= vertex_count)
           throw CommandError(fmt::format("{}: face {} of shape '{}' refers to vertex {} of {}", path.string(), f + 1,
                                          shape.name, index + 1, vertex_count),

@@ -32,8 +32,9 @@ VoiceModel load_voice_model_file(const std::filesystem::path& path);
 /// Writes a .lpv voice model file, like save_model_file.
 void save_voice_model_file(const std::filesystem::path& path, const VoiceModel& model);
 
-/// Reads a Wavefront OBJ with triangulated faces only (tinyobjloader); all
-/// shapes are concatenated in file order.
+/// Reads a Wavefront OBJ with triangulated faces only (drivers/obj_file.hpp); all
+/// shapes are concatenated in file order. A vertex coordinate that is not a number is an
+/// error naming the line (kExitDataError).
 Mesh read_obj(const std::filesystem::path& path);
 
 /// Writes "v x y z" and "f a b c" (1-based) lines with enough digits to
