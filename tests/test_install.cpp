@@ -39,7 +39,8 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
   ASSERT_TRUE(manifest) << "cmake --install writes install_manifest.txt into the build folder";
   std::vector<fs::path> executables;
   int files = 0;
-  bool has_lipdrive = false, has_unit = false, has_model = false, has_ict = false, has_ict_licence = false;
+  bool has_lipdrive = false, has_unit = false, has_udev_rule = false, has_model = false, has_ict = false,
+       has_ict_licence = false;
   // The manifest names the files as installed, without DESTDIR.
   for (std::string line; std::getline(manifest, line);) {
     const fs::path file = root / fs::path(line).relative_path();
@@ -51,6 +52,7 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
     if (!ec && (permissions & fs::perms::owner_exec) != fs::perms::none) executables.push_back(file);
     has_lipdrive = has_lipdrive || file == root / "opt/lipdrive/bin/lipdrive";
     has_unit = has_unit || file.filename() == "lipdrive.service";
+    has_udev_rule = has_udev_rule || file == root / "opt/lipdrive/lib/udev/rules.d/60-lipdrive-gpio.rules";
     has_model = has_model || file.filename() == "default.lpm";
     has_ict = has_ict || file.filename() == "ict_face_light.lpm";
     has_ict_licence = has_ict_licence || file.filename() == "ICT-FaceKit-LICENSE";
@@ -58,6 +60,7 @@ TEST(Install, TheManifestHoldsTheProductAndNoDeveloperExecutable) {
   EXPECT_GT(files, 5);
   EXPECT_TRUE(has_lipdrive);
   EXPECT_TRUE(has_unit);
+  EXPECT_TRUE(has_udev_rule) << "the GPIO chips to the daemon's gpio group";
   EXPECT_TRUE(has_model);
   EXPECT_TRUE(has_ict) << "the ICT head";
   EXPECT_TRUE(has_ict_licence) << "the ICT head ships with its MIT notice";

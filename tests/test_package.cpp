@@ -41,6 +41,7 @@ const std::map<std::string, unsigned> kExpectedFiles = {
     {"/usr/bin/lipdrive", 0755},
     {"/usr/lib/systemd/system/lipdrive.service", 0644},
     {"/usr/lib/sysusers.d/lipdrive.conf", 0644},
+    {"/usr/lib/udev/rules.d/60-lipdrive-gpio.rules", 0644},
     {"/usr/share/doc/lipdrive/changelog.gz", 0644},
     {"/usr/share/doc/lipdrive/copyright", 0644},
     {"/usr/share/lipdrive/models/ICT-FaceKit-LICENSE", 0644},
@@ -237,6 +238,15 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   EXPECT_TRUE(std::regex_search(read_file(root / "etc/passwd"), std::regex("(^|\n)" + user + ":x:")))
       << read_file(root / "etc/passwd");
   EXPECT_THAT(read_file(root / "etc/passwd"), HasSubstr(":/var/lib/" + unit_value(unit, "StateDirectory") + ":"));
+  // The udev rule gives the GPIO chips to a group the unit gives the daemon and postinst created.
+  const std::string rule = read_file(root / "usr/lib/udev/rules.d/60-lipdrive-gpio.rules");
+  ASSERT_TRUE(std::regex_search(
+      rule, m, std::regex(R"re((^|\n)SUBSYSTEM=="gpio", KERNEL=="gpiochip\*", GROUP="([\w-]+)", MODE="0660"\n)re")))
+      << rule;
+  const std::string gpio_group = m[2];
+  EXPECT_THAT(" " + unit_value(unit, "SupplementaryGroups") + " ", HasSubstr(" " + gpio_group + " "));
+  EXPECT_TRUE(std::regex_search(read_file(root / "etc/group"), std::regex("(^|\n)" + gpio_group + ":x:")))
+      << read_file(root / "etc/group");
   const fs::path wants = root / "etc/systemd/system/multi-user.target.wants/lipdrive.service";
   ASSERT_TRUE(fs::is_symlink(wants)) << "the unit is enabled on install";
   EXPECT_TRUE(fs::is_regular_file(root.string() + fs::read_symlink(wants).string())) << fs::read_symlink(wants);
