@@ -165,6 +165,38 @@ TEST(VoiceCli, ATakeWhoseCaptureTimeIsMissingOrGoesBackIsADataErrorNamingTheLine
   EXPECT_FALSE(fs::exists(out));
 }
 
+TEST(VoiceCli, ATakeWhoseRowsRunPastTheEndOfItsSoundIsADataErrorSayingHowFar) {
+  const test::TempDir dir;
+  const fs::path out = dir.path() / "voice.lpv";
+  // The rows span 0 to 1.96 s of their sound: replaced by its first `seconds`.
+  const auto cut_sound = [](const fs::path& take, double seconds) {
+    std::vector<float> samples = synthetic_sound(1);
+    samples.resize(static_cast<std::size_t>(seconds * 16000));
+    WavWriter sound(fs::path(take).replace_extension(".wav"), 16000);
+    sound.write(samples);
+    sound.close();
+  };
+  // A sound that ends a block or two (20 ms each) before the last row, as the recorder's may.
+  const fs::path a = write_take(dir.path(), "a", 1), b = write_take(dir.path(), "b", 2);
+  cut_sound(b, 1.92);
+  test::CommandRun run = test::run_command(lipdrive(
+      fmt::format("voice train --hidden 0 --past-ms 40 --out {} {} {}", out.string(), a.string(), b.string())));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  // Cut short (or another take's): its rows from 1.04 s on (line 28) would be paired with no sound.
+  cut_sound(b, 1.0);
+  fs::remove(out);
+  run = test::run_command(lipdrive(
+      fmt::format("voice train --hidden 0 --past-ms 40 --out {} {} {}", out.string(), a.string(), b.string())));
+  EXPECT_EQ(run.exit_code, 65) << run.output;
+  EXPECT_NE(
+      run.output.find(fmt::format("{}:28: this row and the 23 after it lie up to 0.96 s past the end of its sound "
+                                  "{} (1.00 s long",
+                                  b.string(), fs::path(b).replace_extension(".wav").string())),
+      std::string::npos)
+      << run.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
   const test::TempDir dir;
   const fs::path model = dir.path() / "voice.lpv";

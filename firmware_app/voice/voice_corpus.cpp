@@ -20,6 +20,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// How far a take's last row may lie past the end of its sound: the recorder's sound is as long
+// as its rows within two of the listener's 10 ms blocks (tests/test_voice_room.cpp); a tenth of
+// a second leaves room for a sound card's longer period and stays under three video frames.
+constexpr double kTakeSoundSlack_s = 0.1;
+
 void require_file(const fs::path& file, std::string_view what) {
   std::error_code ec;
   if (!fs::exists(file, ec)) throw CommandError(fmt::format("{}: no such {}", file.string(), what), kExitNoInput);
@@ -114,6 +119,19 @@ VoiceRecording load_take(const fs::path& take, int sample_rate) {
       target.tracked = target.tracked && std::isfinite(columns[static_cast<std::size_t>(k)][i]);
     }
     recording.targets.push_back(target);
+  }
+  // Rows past the end of the sound would be paired with no sound; beyond kTakeSoundSlack_s the
+  // sound is not the one recorded with them (another take's, or one cut short).
+  const double sound_s = static_cast<double>(recording.samples.size()) / sample_rate;
+  const auto past_end =
+      std::ranges::find_if(recording.targets, [&](const VoiceTargetFrame& t) { return t.time_s > sound_s; });
+  if (!recording.targets.empty() && recording.targets.back().time_s > sound_s + kTakeSoundSlack_s) {
+    const auto first = static_cast<std::size_t>(past_end - recording.targets.begin());
+    throw CommandError(fmt::format("{}:{}: this row and the {} after it lie up to {:.2f} s past the end of its sound "
+                                   "{} ({:.2f} s long; another take's, or one cut short)",
+                                   take.string(), table.line_numbers[first], recording.targets.size() - first - 1,
+                                   recording.targets.back().time_s - sound_s, wav.string(), sound_s),
+                       kExitDataError);
   }
   return recording;
 }

@@ -15,8 +15,9 @@ namespace lipdrive {
 /// A clip with sound, or a take (.csv) with its sound, resampled to `sample_rate`. Throws
 /// CommandError naming the file: kExitNoInput when it (or a take's sound) is missing,
 /// kExitDataError when it has no sound (no audio track, or an image or a folder), a take's
-/// table cannot be read or a row's capture_time_ns is missing or earlier than the row before's,
-/// or it has no tracked frame.
+/// table cannot be read, a row's capture_time_ns is missing or earlier than the row before's,
+/// a take's rows run past the end of its sound (naming the first such row), or it has no
+/// tracked frame.
 VoiceRecording load_voice_recording(const std::filesystem::path& input, int sample_rate, FrameProcessor& processor);
 
 }  // namespace lipdrive
