@@ -191,10 +191,15 @@ void Daemon::report_status() {
       latest.timecode >= 0 && timecode_
           ? fmt::format(", timecode {}", format_frame(latest.timecode, timecode_->rate()).view())
           : std::string();
-  const std::string line = fmt::format(
-      "{:.1f} fps, latency median {:.2f} ms p99 {:.2f} ms, drive {}, {}, {}x{}, dropped {}{}{}{}", fps,
-      s.processed_median_ms, s.processed_p99_ms, drive_source_name(status_source(drive.status)), mouth, latest.width,
-      latest.height, s.dropped, timecode, s.connected ? "" : ", camera disconnected", warnings);
+  // Before the first processed frame (a camera not there yet) there is no latency nor size.
+  const std::string latency =
+      std::isnan(s.processed_median_ms)
+          ? std::string("latency n/a")
+          : fmt::format("latency median {:.2f} ms p99 {:.2f} ms", s.processed_median_ms, s.processed_p99_ms);
+  const std::string size = latest.width > 0 ? fmt::format(", {}x{}", latest.width, latest.height) : std::string();
+  const std::string line = fmt::format("{:.1f} fps, {}, drive {}, {}{}, dropped {}{}{}{}", fps, latency,
+                                       drive_source_name(status_source(drive.status)), mouth, size, s.dropped,
+                                       timecode, s.connected ? "" : ", camera disconnected", warnings);
   spdlog::info("{}", line);
   sd_notifyf(0, "STATUS=%s", line.c_str());
 }
