@@ -122,6 +122,19 @@ TEST(V4l2Negotiation, NonCaptureDeviceIsAnErrorNamingTheDevice) {
   EXPECT_NE(error_of(config, options_for(config)).find("streaming"), std::string::npos);
 }
 
+/// Plugs the device back in and grabs until the camera has reopened it: the sensor has not
+/// captured yet, so the grab that reopens it times out.
+void replug_and_reopen(FakeV4l2Device& device, V4l2Camera& camera) {
+  device.replug();
+  Frame frame;
+  GrabStatus status = GrabStatus::kDisconnected;
+  for (int attempt = 0; attempt < 20 && status == GrabStatus::kDisconnected; ++attempt)
+    status = camera.grab(frame, 20ms);
+  ASSERT_EQ(status, GrabStatus::kTimeout);
+  EXPECT_TRUE(camera.connected());
+  EXPECT_TRUE(camera.reconnect_error().empty());
+}
+
 // A camera not there when the daemon starts (a USB camera enumerated after it at boot) is a
 // camera away, named and waited for as after an unplug: frames flow once it appears.
 TEST(V4l2Disconnect, ACameraNotThereYetIsWaitedFor) {
@@ -139,13 +152,7 @@ TEST(V4l2Disconnect, ACameraNotThereYetIsWaitedFor) {
   for (int attempt = 0; attempt < 5; ++attempt) EXPECT_EQ(camera.grab(frame, 20ms), GrabStatus::kDisconnected);
   EXPECT_EQ(device.open_fd_count(), 0u);
 
-  device.replug();
-  GrabStatus status = GrabStatus::kDisconnected;
-  for (int attempt = 0; attempt < 20 && status == GrabStatus::kDisconnected; ++attempt)
-    status = camera.grab(frame, 20ms);
-  ASSERT_EQ(status, GrabStatus::kTimeout);  // opened; the sensor has not captured yet
-  EXPECT_TRUE(camera.connected());
-  EXPECT_TRUE(camera.reconnect_error().empty());
+  ASSERT_NO_FATAL_FAILURE(replug_and_reopen(device, camera));
   const cv::Mat expected = test_pattern(device.size(), 3);
   ASSERT_TRUE(device.produce(expected));
   ASSERT_EQ(camera.grab(frame, 100ms), GrabStatus::kFrame);
@@ -655,14 +662,8 @@ TEST(V4l2Disconnect, FramesResumeWhenTheDeviceComesBack) {
   EXPECT_NE(camera.reconnect_error().find(config.path), std::string::npos) << camera.reconnect_error();
   EXPECT_EQ(device.open_fd_count(), 0u);
 
-  device.replug();
-  GrabStatus status = GrabStatus::kDisconnected;
-  for (int attempt = 0; attempt < 20 && status == GrabStatus::kDisconnected; ++attempt)
-    status = camera.grab(frame, 20ms);
-  ASSERT_EQ(status, GrabStatus::kTimeout);  // reopened; the sensor has not captured yet
-  EXPECT_TRUE(camera.connected());
+  ASSERT_NO_FATAL_FAILURE(replug_and_reopen(device, camera));
   EXPECT_EQ(camera.counters().reconnects, 1u);
-  EXPECT_TRUE(camera.reconnect_error().empty());
 
   const cv::Mat expected = test_pattern(device.size(), 9);
   ASSERT_TRUE(device.produce(expected));
