@@ -92,14 +92,13 @@ struct VideoFile::Decoder {
 
   [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
 
-  /// The decoded picture's place on the stream's timeline in periods of `frame_rate`; -1
-  /// when it has no timestamp or there is no rate.
-  std::int64_t timeline_index(double frame_rate) const {
+  /// The decoded picture's time from the stream's start in seconds; none without a timestamp.
+  std::optional<double> picture_time_s() const {
     const std::int64_t pts = picture->best_effort_timestamp;
-    if (pts == AV_NOPTS_VALUE || !(frame_rate > 0)) return -1;
+    if (pts == AV_NOPTS_VALUE) return std::nullopt;
     const AVStream* video = format->streams[stream];
     const std::int64_t start = video->start_time == AV_NOPTS_VALUE ? 0 : video->start_time;
-    return std::llround(static_cast<double>(pts - start) * av_q2d(video->time_base) * frame_rate);
+    return static_cast<double>(pts - start) * av_q2d(video->time_base);
   }
 
   /// The next decoded picture; false at the end (or where a damaged file stops decoding, saying
@@ -180,7 +179,9 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
       d.damage = fmt::format("the file states {} frames", stated_frames_);
     return false;
   }
-  frame_index_ = std::max(frame_index_ + 1, d.timeline_index(frame_rate_));
+  frame_time_s_ = d.picture_time_s();
+  const std::int64_t slot = frame_time_s_ && frame_rate_ > 0 ? std::llround(*frame_time_s_ * frame_rate_) : -1;
+  frame_index_ = std::max(frame_index_ + 1, slot);
   const AVRational sample_aspect =
       av_guess_sample_aspect_ratio(d.format.get(), d.format->streams[d.stream], d.picture.get());
   bool converted = false;

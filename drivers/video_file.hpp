@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -51,12 +52,20 @@ class VideoFile {
   /// Frames the file declares (or its duration implies); 0 when unknown. One pass's length, no
   /// measure of damage (damage() is): the duration may be the sound's, or FFmpeg's estimate.
   std::int64_t frame_count() const { return frame_count_; }
-  /// Where the frame read last lies on the file's timeline, counted in frame periods from the
-  /// stream's start (its timestamp times the frame rate, rounded); -1 before the first read. A
+  /// The slot of the frame read last: unique and increasing, where it lies on the file's timeline
+  /// counted in periods of frame_rate() from the stream's start (its time times the frame rate,
+  /// rounded), and at least the slot after the frame before; -1 before the first read. A
   /// recorder that dropped a frame leaves its slot empty (an AVI's empty chunk, a gap in an
   /// MP4's or Matroska's timestamps): the frames after it count from their own time, not from
   /// how many came before. Without timestamps or a frame rate, the frames read before it.
+  /// A variable-rate file (a phone's, or parts at different rates joined) states one rate:
+  /// frames closer together than its period take the next free slots and run ahead of their
+  /// time (frame_time_s() is the time), until a gap or a slower stretch lets their time catch
+  /// up; frames further apart leave slots empty, as dropped frames do.
   std::int64_t frame_index() const { return frame_index_; }
+  /// When the frame read last is shown, in seconds from the stream's start (its timestamp, or
+  /// FFmpeg's best guess at it, less the stream's start time); none when it has no timestamp.
+  std::optional<double> frame_time_s() const { return frame_time_s_; }
 
   /// The next frame's luma into `gray` and its Cr into `cr` (empty without colour; buffers kept
   /// while the size holds). False at the end of the file, and where the rest of a damaged file
@@ -80,6 +89,7 @@ class VideoFile {
   std::int64_t frame_count_ = 0;
   std::int64_t stated_frames_ = 0;  // the picture's frames as the file states them exactly; 0: none
   std::int64_t frame_index_ = -1;
+  std::optional<double> frame_time_s_;
   DisplayOrientation stream_orientation_, orientation_;
 };
 

@@ -108,9 +108,9 @@ void SimulatedCamera::rewind() {
   if (kind_ == Kind::kVideo) open_video();
 }
 
-bool SimulatedCamera::wait_until_due(std::chrono::milliseconds timeout) const {
+bool SimulatedCamera::wait_until_due(std::chrono::milliseconds timeout, std::int64_t shift_ns) const {
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
-  const std::int64_t deadline = start_ns_ + static_cast<std::int64_t>(sequence_) * period_ns;
+  const std::int64_t deadline = start_ns_ + static_cast<std::int64_t>(sequence_) * period_ns + shift_ns;
   const std::int64_t now = monotonic_ns();
   const std::int64_t timeout_ns = std::chrono::nanoseconds(timeout).count();
   if (deadline - now > timeout_ns) {
@@ -190,16 +190,20 @@ GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout
   if (const auto outage = injected_outage(timeout)) return *outage;
   if (options_.real_time) {
     if (start_ns_ == 0) start_ns_ = clock_ ? clock_->start_ns() : monotonic_ns();
-    if (!wait_until_due(timeout)) return GrabStatus::kTimeout;
+    if (!wait_until_due(timeout, expected_shift_ns_)) return GrabStatus::kTimeout;
   }
-  // Read when the next slot is due (decoding then, as a camera delivers, not while the frame
-  // before is processed); a frame after slots the recorder left empty is held to its own.
+  // Read when the next frame is looked for (decoding then, as a camera delivers, not while the
+  // frame before is processed); a frame after slots the recorder left empty is held to its own.
   if (!read_next()) {
     ended_ = true;
     return GrabStatus::kEndOfStream;
   }
-  if (options_.real_time && !wait_until_due(timeout)) return GrabStatus::kTimeout;
+  if (options_.real_time && !wait_until_due(timeout, held_shift_ns_)) return GrabStatus::kTimeout;
   held_ = false;
+  // The next frame is looked for a period after this one, or sooner where this one came less
+  // than a period after the one before (a stretch faster than the stated rate).
+  expected_shift_ns_ = held_shift_ns_ + std::min<std::int64_t>(held_shift_ns_ - delivered_shift_ns_, 0);
+  delivered_shift_ns_ = held_shift_ns_;
   frame = next_;
   // A frame that could not be decoded still used up its slot: the sequence gap shows it.
   frame.sequence = sequence_++;
@@ -224,7 +228,12 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
   const std::int64_t index = video_->frame_index();
   sequence_ += static_cast<std::uint64_t>(std::max<std::int64_t>(index - last_index_ - 1, 0));
   last_index_ = index;
-  frame.media_time_s = static_cast<double>(index) / frame_rate_;
+  // Its own time on the recording's timeline: a variable-rate clip's frames are not a period
+  // apart, and its sound is heard at their times. At a replay rate of its own the replay's
+  // slots are the timeline.
+  const double slot_time_s = static_cast<double>(index) / frame_rate_;
+  frame.media_time_s = options_.replay_rate > 0 ? slot_time_s : video_->frame_time_s().value_or(slot_time_s);
+  held_shift_ns_ = std::llround((frame.media_time_s - slot_time_s) * 1e9);
   frame.source = video_path_;
   ++position_;
   return GrabStatus::kFrame;

@@ -33,11 +33,12 @@ struct SimulatedCameraOptions {
   };
 
   std::filesystem::path input;   // video file, image file, or folder of images
-  bool real_time = false;        // pace at the recording's frame rate; else as fast as possible
+  bool real_time = false;        // pace at the recording's own times; else as fast as possible
   bool loop = false;             // restart at the end instead of reporting kEndOfStream
   double image_frame_rate = 25;  // frames per second for images and folders (and videos without one)
   double replay_rate = 0;        // > 0: replay at this many frames per second instead (a 60 fps bench
-                                 // from a 25 fps recording); media time follows the replay rate
+                                 // from a 25 fps recording), whatever the frames' own times; media
+                                 // time follows the replay rate
   FaultInjection faults{};
 };
 
@@ -49,8 +50,9 @@ class SimulatedCamera : public FrameSource {
   /// Opens the input. Throws SourceError naming the path when it is missing, an empty
   /// or unreadable folder, or a file that is neither a decodable image nor a video.
   /// `clock` (not owned; it outlives the camera): the real-time replay keeps to this timeline,
-  /// shared with the clip's simulated sound (sim/simulated_audio.hpp): frame n is due at its
-  /// start + n periods, and after an injected outage the replay goes on with the frame due
+  /// shared with the clip's simulated sound (sim/simulated_audio.hpp): a video's frame is due at
+  /// its start + its own time on the recording (media_time_s; at a replay rate, and an image, n
+  /// periods for frame n), and after an injected outage the replay goes on with the frame due
   /// then, as a camera that comes back shows the present. Without it the replay starts at the
   /// first grab() and resumes after an outage where it stopped.
   explicit SimulatedCamera(SimulatedCameraOptions options, ReplayClock* clock = nullptr);
@@ -84,8 +86,9 @@ class SimulatedCamera : public FrameSource {
   // gray_ and cr_ as their file means them to be seen: mirrored in place, turned into
   // turned_gray_ / turned_cr_; `frame` points at the planes that hold them.
   void show(DisplayOrientation orientation, Frame& frame);
-  // Real-time pacing: false (after sleeping `timeout`) when the frame is not due yet.
-  bool wait_until_due(std::chrono::milliseconds timeout) const;
+  // Real-time pacing: false (after sleeping `timeout`) when the frame is not due yet. Slot n is
+  // due at start + n periods, a frame `shift_ns` from its slot's time that much later.
+  bool wait_until_due(std::chrono::milliseconds timeout, std::int64_t shift_ns) const;
   // Fault injection: the status while an injected disconnect or stall lasts, else nullopt.
   std::optional<GrabStatus> injected_outage(std::chrono::milliseconds timeout);
   // Fault injection on a frame just read: kFrame, or what the fault makes of it.
@@ -117,6 +120,11 @@ class SimulatedCamera : public FrameSource {
   bool held_ = false;
   bool ended_ = false;
   std::int64_t start_ns_ = 0;         // real-time pacing: deadline of frame n = start + n * period
+  // Real-time pacing at a video's own rate: a frame is due at its own time, this far from its
+  // slot's (a variable-rate clip's frames are not a period apart).
+  std::int64_t held_shift_ns_ = 0;       // the frame read last
+  std::int64_t delivered_shift_ns_ = 0;  // the frame delivered last
+  std::int64_t expected_shift_ns_ = 0;   // where the next frame is looked for before it is read
   std::int64_t frames_read_ = 0;      // fault injection: frames read from the recording
   std::int64_t outage_until_ns_ = 0;  // fault injection: end of a disconnect or stall, 0 = none
   GrabStatus outage_status_ = GrabStatus::kTimeout;

@@ -7,6 +7,7 @@
 #include "command_run.hpp"
 #include "exif_jpeg.hpp"
 #include "fixture_paths.hpp"
+#include "variable_rate_clip.hpp"
 
 #include <gmock/gmock.h>
 #include <fmt/format.h>
@@ -106,6 +107,36 @@ TEST_F(MediaFilesTest, AClipsLumaIsWhatOpenCvsDecoderGives) {
   EXPECT_EQ(frames, video.frame_count());
   // Full-range luma either way; OpenCV goes through BGR and rounds twice.
   EXPECT_LT(worst, 1.0) << "mean absolute luma difference, worst frame";
+}
+
+// A variable-rate clip's frames at 25, 50 and 25 fps: each frame read carries its own time as
+// ffprobe reads it and as it was given, not its slot at the one rate the file states, in
+// Matroska (25 fps stated) and MP4 (50 fps stated); the slots stay unique and increasing.
+TEST_F(MediaFilesTest, AVariableRateClipsFramesCarryTheirOwnTimes) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  constexpr int kFrames = 40;
+  const std::vector<double> given = test::variable_rate_times(kFrames);
+  for (const char* container : {"mkv", "mp4"}) {
+    SCOPED_TRACE(container);
+    const fs::path clip = dir_ / fmt::format("variable.{}", container);
+    const test::CommandRun made = test::variable_rate_clip(test::kClip, kFrames, clip);
+    ASSERT_EQ(made.exit_code, 0) << made.output;
+    const std::vector<double> probed = test::ffprobe_frame_times(clip);
+    ASSERT_EQ(probed.size(), given.size());
+    VideoFile video(clip);
+    cv::Mat gray, cr;
+    std::int64_t last_index = -1;
+    for (int i = 0; i < kFrames; ++i) {
+      ASSERT_TRUE(video.read(gray, cr)) << "frame " << i;
+      ASSERT_TRUE(video.frame_time_s().has_value()) << "frame " << i;
+      EXPECT_NEAR(*video.frame_time_s(), probed[i], 0.001) << "frame " << i;
+      EXPECT_NEAR(*video.frame_time_s(), given[i], 0.001) << "frame " << i;
+      EXPECT_GT(video.frame_index(), last_index) << "frame " << i;
+      last_index = video.frame_index();
+    }
+    EXPECT_FALSE(video.read(gray, cr));
+    EXPECT_EQ(video.damage(), "");
+  }
 }
 
 TEST_F(MediaFilesTest, ImagesReadAsOpenCvReadsThem) {

@@ -11,6 +11,7 @@
 #include "firmware_app/tables/csv_table.hpp"
 #include "fixture_paths.hpp"
 #include "sim/face_faults.hpp"
+#include "variable_rate_clip.hpp"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -655,6 +656,28 @@ TEST_F(ProcessTest, ATakeThroughAPipeIsReadOnce) {
   EXPECT_EQ(read_csv_table(out).rows.size(), frame_count(source));
   EXPECT_NE(run.stderr_text.find("identity: fitted from the first 20 tracked frames"), std::string::npos)
       << run.stderr_text;
+}
+
+// The talking face retimed to 25, then 50, then 25 frames per second (the file states 25): each
+// row's time_s is its frame's own time, not its frame number over the stated rate, and the
+// frame numbers stay unique and increasing.
+TEST_F(ProcessTest, AVariableRateClipsRowsCarryTheirFramesOwnTimes) {
+  const fs::path source = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(source);
+  const int frames = static_cast<int>(frame_count(source));
+  const fs::path clip = dir_ / "variable.mkv", out = dir_ / "variable.csv";
+  const test::CommandRun made = test::variable_rate_clip(source, frames, clip);
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  const ProcessRun run = run_process(clip.string() + " --out " + out.string(), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  const CsvTable table = read_csv_table(out);
+  const std::vector<double> times = test::variable_rate_times(frames), time_s = numeric_column(table, "time_s"),
+                            frame = numeric_column(table, "frame");
+  ASSERT_EQ(time_s.size(), times.size());
+  for (std::size_t i = 0; i < times.size(); ++i) {
+    EXPECT_NEAR(time_s[i], times[i], 1e-6) << "row " << i;
+    if (i > 0) EXPECT_GT(frame[i], frame[i - 1]) << "row " << i;
+  }
 }
 
 TEST_F(ProcessTest, DamagedVideoKeepsTheRowsBeforeTheDamage) {

@@ -6,6 +6,7 @@
 #include "firmware_app/config/factories.hpp"
 #include "command_run.hpp"
 #include "exif_jpeg.hpp"
+#include "variable_rate_clip.hpp"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -434,6 +435,46 @@ TEST_F(SimulatedCameraTest, AFrameTheRecorderDroppedIsAGapInTimeNotDamage) {
       EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
       EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
     }
+  }
+}
+
+TEST_F(SimulatedCameraTest, AVariableRateClipIsReplayedAtItsFramesOwnTimes) {
+  // 25, then 50, then 25 frames per second; the file states 25.
+  const fs::path clip = dir_ / "variable.mkv";
+  const test::CommandRun made = test::variable_rate_clip(write_video(kFrames), kFrames, clip);
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  const std::vector<double> times = test::variable_rate_times(kFrames);
+  // As fast as it decodes and in real time at its own rate: each frame's media time is its own,
+  // and in real time it is delivered then (its sound is heard then), the frames at 50 fps too;
+  // the sequence numbers stay unique and increasing.
+  for (const bool real_time : {false, true}) {
+    SCOPED_TRACE(real_time ? "in real time" : "as fast as it decodes");
+    SimulatedCamera camera({.input = clip, .real_time = real_time});
+    EXPECT_DOUBLE_EQ(camera.frame_rate(), kFps);
+    const std::int64_t began_ns = monotonic_ns();
+    Frame frame;
+    std::int64_t last_sequence = -1;
+    for (int i = 0; i < kFrames; ++i) {
+      ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
+      EXPECT_EQ(decoded_index(frame.gray), i);
+      EXPECT_GT(static_cast<std::int64_t>(frame.sequence), last_sequence) << "frame " << i;
+      last_sequence = static_cast<std::int64_t>(frame.sequence);
+      EXPECT_NEAR(frame.media_time_s, times[i], 0.001) << "frame " << i;
+      if (real_time) {
+        const double delivered_s = static_cast<double>(frame.capture_time_ns - began_ns) * 1e-9;
+        EXPECT_GE(delivered_s, times[i] - 0.001) << "frame " << i;
+        EXPECT_LT(delivered_s, times[i] + 0.1) << "frame " << i;
+      }
+    }
+    EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+  }
+  // At a replay rate of its own, its frames come at that rate whatever their times, and their
+  // media times are the replay's.
+  SimulatedCamera camera({.input = clip, .replay_rate = 100});
+  Frame frame;
+  for (int i = 0; i < kFrames; ++i) {
+    ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
+    EXPECT_NEAR(frame.media_time_s, static_cast<double>(frame.sequence) / 100, 1e-9) << "frame " << i;
   }
 }
 
