@@ -433,6 +433,48 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   EXPECT_TRUE(watch.followed_again) << "the drive follows the face again after the reconnect";
 }
 
+/// A camera that was not there when the pipeline was built: it says the rate asked for, 60,
+/// until its stream delivers, then the rate it runs at.
+class LateCamera : public FrameSource {
+ public:
+  explicit LateCamera(std::unique_ptr<FrameSource> camera) : camera_(std::move(camera)) {}
+  GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override {
+    const GrabStatus status = camera_->grab(frame, timeout);
+    opened_ = opened_ || status == GrabStatus::kFrame;
+    return status;
+  }
+  double frame_rate() const override { return opened_ ? camera_->frame_rate() : 60; }
+  std::string describe() const override { return camera_->describe(); }
+
+ private:
+  std::unique_ptr<FrameSource> camera_;
+  bool opened_ = false;
+};
+
+TEST_F(PipelineTest, ACameraThatOpensLateIsTrackedAtTheRateItRuns) {
+  // It opens at 15 fps: a frame every 67 ms, more than three periods of the 60 fps asked for,
+  // so a pipeline that kept the rate of its start would drop the tracking between frames.
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  options.replay_rate = 15;
+  PipelineSettings settings;
+  settings.frame_wait = 20ms;
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<LateCamera>(std::make_unique<SimulatedCamera>(options)), make_processor(),
+                    settings, control);
+  RecordingOutput output;
+  pipeline.add_output(output);
+  pipeline.start();
+  wait_for([&] { return output.status & kStatusTracking; }, 30s);
+  ASSERT_TRUE(output.status & kStatusTracking);
+  const int untracked_before = output.untracked, count_before = output.count;
+  wait_for([&] { return pipeline.stats().tracked >= 20; }, 30s);
+  const int untracked = output.untracked - untracked_before, count = output.count - count_before;
+  pipeline.stop();
+  EXPECT_GT(count, 40) << "the output thread's ticks over 20 frames";
+  EXPECT_EQ(untracked, 0) << "drive frames that lost the tracking between camera frames";
+}
+
 TEST_F(PipelineTest, AnOpenEnableSwitchEasesTheDriveToNeutralAndClosingItFollowsAgain) {
   SimulatedCameraOptions options = clip_options();
   options.real_time = true;

@@ -58,7 +58,9 @@ void Capture::run() {
         last_frame_ns = now;
         const bool was_connected = connected_.exchange(true);
         const bool was_silent = silent_.exchange(false);
-        if (captured_.fetch_add(1, std::memory_order_relaxed) == 0)
+        const bool first = captured_.fetch_add(1, std::memory_order_relaxed) == 0;
+        if (first || !was_connected) frame_rate_.store(source_->frame_rate(), std::memory_order_relaxed);
+        if (first)
           spdlog::info("{}: delivering frames", name_);
         else if (!was_connected || was_silent)
           spdlog::info("{}: delivering frames again", name_);

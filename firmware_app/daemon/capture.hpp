@@ -75,7 +75,9 @@ class Capture {
   std::int64_t heartbeat_ns() const { return heartbeat_ns_.load(std::memory_order_relaxed); }
   CaptureCounters counters() const;
 
-  double frame_rate() const { return frame_rate_; }
+  /// The source's frame rate as its stream last opened: a camera that was not there at start
+  /// reports the rate asked for until it opens, and one that comes back may run at another.
+  double frame_rate() const { return frame_rate_.load(std::memory_order_relaxed); }
   /// The source's description, e.g. "/dev/video0".
   const std::string& describe() const { return description_; }
   /// What log lines start with: the role and the description.
@@ -89,7 +91,7 @@ class Capture {
 
   std::unique_ptr<FrameSource> source_;
   const std::string description_, name_, when_lost_;
-  const double frame_rate_;
+  std::atomic<double> frame_rate_;  // written by the capture thread on every (re)connection
   LatestFrame<CapturedFrame> frames_;
   std::atomic<bool> connected_{true}, silent_{false}, ended_{false}, failed_{false}, stop_{false};
   std::atomic<std::int64_t> heartbeat_ns_{0};

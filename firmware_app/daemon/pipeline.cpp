@@ -18,8 +18,6 @@ constexpr std::int64_t kCaptureStallNs = 1'000'000'000;
 
 double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
-std::int64_t frame_period_ns(double fps) { return static_cast<std::int64_t>(1e9 / (fps > 0 ? fps : 30.0)); }
-
 // A stage the frame processor did not reach this frame reads NaN and is not counted.
 void add_stage_time(LatencyHistogram& histogram, double ms) {
   if (!std::isnan(ms)) histogram.add(std::llround(ms * 1e6));
@@ -31,13 +29,10 @@ Pipeline::Pipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FramePro
                    PipelineSettings settings, DriveControl& control)
     : capture_(std::move(source), "", "the drive holds, then eases to neutral"),
       processor_(std::move(processor)),
-      frame_period_ns_(frame_period_ns(capture_.frame_rate())),
       settings_(std::move(settings)),
       control_(control),
       channels_(settings_.channels, settings_.safety),
-      hand_over_(std::chrono::nanoseconds(settings_.voice_crossfade).count()),
-      // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
-      max_result_age_ns_(3 * frame_period_ns_) {}
+      hand_over_(std::chrono::nanoseconds(settings_.voice_crossfade).count()) {}
 
 Pipeline::~Pipeline() { stop(); }
 
@@ -117,14 +112,20 @@ void Pipeline::processing_loop() {
   }
 }
 
+std::int64_t Pipeline::frame_period_ns() const {
+  const double fps = capture_.frame_rate();
+  return static_cast<std::int64_t>(1e9 / (fps > 0 ? fps : 30.0));
+}
+
 std::int64_t Pipeline::warm_time(std::int64_t capture_ns) {
   const std::int64_t interval_ns = capture_ns - last_capture_ns_;
   last_capture_ns_ = capture_ns;
   if (settings_.warm_ahead.count() <= 0) return 0;
   // The next frame is expected one interval after this one: the last interval, so that a camera
   // that slows down in the dark is followed; the nominal period after a gap or at the start.
-  const bool recent = interval_ns > 0 && interval_ns < 4 * frame_period_ns_;
-  return capture_ns + (recent ? interval_ns : frame_period_ns_) - std::chrono::nanoseconds(settings_.warm_ahead).count();
+  const std::int64_t period_ns = frame_period_ns();
+  const bool recent = interval_ns > 0 && interval_ns < 4 * period_ns;
+  return capture_ns + (recent ? interval_ns : period_ns) - std::chrono::nanoseconds(settings_.warm_ahead).count();
 }
 
 void Pipeline::process(const CapturedFrame& frame) {
@@ -143,7 +144,7 @@ void Pipeline::process(const CapturedFrame& frame) {
     result.measures = measurement.measures;
     result.visemes = measurement.visemes;
     result.signals = drive_signals(measurement.measures, measurement.visemes, profile_);
-    if (const auto side = side_ ? side_->protrusion_near(frame.capture_time_ns, frame_period_ns_ / 2) : std::nullopt) {
+    if (const auto side = side_ ? side_->protrusion_near(frame.capture_time_ns, frame_period_ns() / 2) : std::nullopt) {
       result.side_used = true;
       result.protrusion_side = *side;
       result.signals[Signal::kProtrusion] = static_cast<float>(profile_.protrusion_side.scale(*side));
@@ -278,7 +279,8 @@ void Pipeline::output_loop() {
     // A tracked result stops counting as tracking the moment the camera goes away or stops
     // delivering, not when the processing thread next publishes: the hold time starts there.
     connected = capture_.connected();
-    const bool tracked = result.tracked && connected && now - result.capture_time_ns <= max_result_age_ns_;
+    // Three frame periods: a late frame is not a loss, a camera that stopped delivering is.
+    const bool tracked = result.tracked && connected && now - result.capture_time_ns <= 3 * frame_period_ns();
     bool heard = false;
     const std::uint32_t voice_version = voice_state(now, voice, heard);
     const DriveSource before = source;

@@ -170,11 +170,12 @@ class Pipeline {
   /// Processing thread: when to warm the caches for the frame after the one captured at
   /// `capture_ns`; 0 = not at all.
   std::int64_t warm_time(std::int64_t capture_ns);
+  /// The front camera's frame period as its stream runs now (30 fps where it states none).
+  std::int64_t frame_period_ns() const;
 
   Capture capture_;
   std::unique_ptr<FrameProcessor> processor_;
   std::unique_ptr<SideCamera> side_;
-  std::int64_t frame_period_ns_;  // the front camera's
   PipelineSettings settings_;
   std::vector<Output*> outputs_;
   std::vector<ResultSink*> sinks_;
@@ -203,7 +204,6 @@ class Pipeline {
   HandOver hand_over_;               // output thread's
   PerformerProfile output_profile_;  // output thread's: the voice's measures -> signals
   std::uint32_t output_profile_version_ = 0;
-  std::int64_t max_result_age_ns_;  // older results do not count as tracking
   LatencyHistogram processed_latency_, output_latency_, voice_latency_;
   LatencyHistogram hand_off_time_, landmarks_time_, fit_time_, measures_time_;  // processing thread's stages
 
