@@ -146,7 +146,8 @@ std::size_t minimum_image_bytes(const V4l2Negotiated& negotiated) {
   }
 }
 
-/// The device node is not there (or went away while it was being opened).
+/// The device node is not there, went away while it was being opened, or is not yet the
+/// service's to open (udev gives a new node its group a moment after it appears).
 struct DeviceAbsent : SourceError {
   using SourceError::SourceError;
 };
@@ -160,12 +161,7 @@ class StreamOpener {
   std::unique_ptr<V4l2Stream> open(const V4l2Options& options, V4l2Negotiated& negotiated) {
     // Non-blocking: grab() waits in poll() with its own timeout, and DQBUF never hangs.
     const int fd = system_.open(path_.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC);
-    if (fd == -1) {
-      const int error = errno;
-      const std::string reason = path_ + ": cannot open the device: " + error_text(error);
-      if (error == ENOENT || is_disconnect(error)) throw DeviceAbsent(reason);
-      throw SourceError(reason);
-    }
+    if (fd == -1) fail_with_errno("cannot open the device");
     stream_ = std::make_unique<V4l2Stream>(system_, fd);
 
     negotiated.card = query_capture_card();
@@ -184,7 +180,9 @@ class StreamOpener {
   /// For a call that just failed: errno is read before anything else can change it.
   [[noreturn]] void fail_with_errno(const char* what) const {
     const int error = errno;
-    fail(std::string(what) + ": " + error_text(error));
+    const std::string reason = path_ + ": " + what + ": " + error_text(error);
+    if (error == ENOENT || error == EACCES || is_disconnect(error)) throw DeviceAbsent(reason);
+    throw SourceError(reason);
   }
 
   void require(unsigned long request, void* argument, const char* what) {

@@ -89,6 +89,7 @@ void* FakeV4l2Device::fail_mapping(int error, const std::string& violation) {
 int FakeV4l2Device::open(const char* path, int flags) {
   ++open_count_;
   if (!plugged_ || path != config_.path) return fail(ENOENT);
+  if (open_errno_ != 0) return fail(open_errno_);
   const int fd = next_fd_++;
   fds_[fd] = {generation_, (flags & O_NONBLOCK) != 0};
   return fd;

@@ -83,6 +83,8 @@ class FakeV4l2Device final : public SystemCalls {
   void unplug();
   /// The device enumerates again, in its power-on state.
   void replug();
+  /// open() fails with `error` (0: opens): EACCES is a node udev has not given its group yet.
+  void refuse_open(int error) { open_errno_ = error; }
 
   // What the test checks.
   cv::Size size() const { return {int(state_.width), int(state_.height)}; }
@@ -160,6 +162,7 @@ class FakeV4l2Device final : public SystemCalls {
   Config config_;
   DeviceState state_;
   bool plugged_ = true;
+  int open_errno_ = 0;
   unsigned generation_ = 0;  // bumped by unplug: fds of an older generation are stale
   int next_fd_ = 1000;
   std::size_t open_count_ = 0;

@@ -160,6 +160,21 @@ TEST(V4l2Disconnect, ACameraNotThereYetIsWaitedFor) {
   EXPECT_TRUE(device.violations().empty());
 }
 
+// At boot udev gives a new node its group a moment after it appears: until then opening it is
+// refused, and the camera is waited for as one not there yet.
+TEST(V4l2Disconnect, ANodeNotYetTheServicesToOpenIsWaitedFor) {
+  FakeV4l2Device::Config config;
+  config.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(config);
+  device.refuse_open(EACCES);
+  V4l2Camera camera(options_for(config), device);
+  EXPECT_FALSE(camera.connected());
+  EXPECT_NE(camera.reconnect_error().find("Permission denied"), std::string::npos) << camera.reconnect_error();
+  device.refuse_open(0);
+  ASSERT_NO_FATAL_FAILURE(replug_and_reopen(device, camera));
+  EXPECT_TRUE(device.violations().empty());
+}
+
 TEST(V4l2Negotiation, AcceptsTheSizeAndRateTheDriverAdjustedTo) {
   FakeV4l2Device::Config config;
   config.sizes = {{640, 480}, {320, 240}};
