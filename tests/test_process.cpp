@@ -680,6 +680,32 @@ TEST_F(ProcessTest, AVariableRateClipsRowsCarryTheirFramesOwnTimes) {
   }
 }
 
+// A 29.97 fps recording whose container keeps times to the millisecond (Matroska): frame 1 at
+// 33 ms lies before the 33.37 ms at which timecode frame 1 starts. Every row's timecode is its
+// own, one after the other: none repeated, none skipped.
+TEST_F(ProcessTest, TheTimecodeColumnCountsTheRecordingsFramesOneByOne) {
+  const fs::path source = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(source);
+  const fs::path clip = dir_ / "ntsc.mkv", out = dir_ / "ntsc.csv";
+  ASSERT_EQ(test::run_command(fmt::format("ffmpeg -v error -y -r 30000/1001 -i {} -frames:v 60 -c:v mjpeg -q:v 3 {}",
+                                          source.string(), clip.string()))
+                .exit_code,
+            0);
+  const ProcessRun run =
+      run_process(fmt::format("{} --timecode 01:00:00:00 --timecode-fps 29.97 --out {}", clip.string(), out.string()),
+                  dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  const CsvTable table = read_csv_table(out);
+  const auto column = std::find(table.header.begin(), table.header.end(), "timecode");
+  ASSERT_NE(column, table.header.end());
+  ASSERT_EQ(table.rows.size(), 60u);
+  for (std::size_t row = 0; row < table.rows.size(); ++row) {
+    const std::string& timecode = table.rows[row][static_cast<std::size_t>(column - table.header.begin())];
+    // No frame is dropped from the count in the first two seconds of the hour.
+    EXPECT_EQ(timecode, fmt::format("01:00:{:02d};{:02d}", row / 30, row % 30)) << "row " << row;
+  }
+}
+
 TEST_F(ProcessTest, DamagedVideoKeepsTheRowsBeforeTheDamage) {
   const fs::path source = kFixtureDir / "talking_face.avi";
   LIPDRIVE_REQUIRE_BUILT(source);

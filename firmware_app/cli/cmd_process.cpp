@@ -373,9 +373,15 @@ void run_process(const ProcessOptions& options) {
     }
     if (timecode) {
       // The frame's place in the recording from the start's timecode, like the sound
-      // department's recorder stamping the same take.
+      // department's recorder stamping the same take: the timecode frame its start falls in.
+      // Its time is as the container keeps it, Matroska's to the millisecond: up to half a
+      // millisecond before the true start, which at the timecode's own rate (29.97 fps: frame 1
+      // at 33 ms, timecode frame 1 from 33.37 ms) is in the timecode frame before.
+      constexpr std::int64_t kContainerRoundingNs = 500'000;
       row.push_back(',');
-      append_timecode(row, frame_after(timecode->first, std::llround(frame.media_time_s * 1e9), timecode->second),
+      append_timecode(row,
+                      frame_after(timecode->first, std::llround(frame.media_time_s * 1e9) + kContainerRoundingNs,
+                                  timecode->second),
                       timecode->second);
     }
     if (voice) voice->append(row, frame.media_time_s);
