@@ -307,6 +307,17 @@ TEST_F(EvalPlotTest, EvalErrorsNameTheProblem) {
   const RunResult rate = run({"eval", "--pred", hurried, "--align", align});
   EXPECT_EQ(rate.exit_code, 65);
   EXPECT_THAT(rate.err, HasSubstr(hurried.string() + ": its frame and time_s columns give 1e+06 frames per second"));
+
+  // Frames at 25, then 50, then 25 frames/s: no one rate places the words on them.
+  std::string varying = "frame,time_s,tracked,open\n";
+  double t = 0;
+  for (int f = 0; f < 60; ++f, t += (f >= 20 && f < 40) ? 0.02 : 0.04)
+    varying += fmt::format("{},{:.4f},1,0.1\n", f, t);
+  const auto vfr = write("vfr.csv", varying);
+  const RunResult unsteady = run({"eval", "--pred", vfr, "--align", align});
+  EXPECT_EQ(unsteady.exit_code, 65);
+  EXPECT_THAT(unsteady.err, HasSubstr(vfr.string() + ": frame 5 is at 0.2000 s"));  // the first one off
+  EXPECT_THAT(unsteady.err, HasSubstr("not at one rate"));
 }
 
 TEST_F(EvalPlotTest, CsvReaderHandlesQuotesAndEmptyFields) {

@@ -94,7 +94,9 @@ std::vector<int> frame_numbers(const CsvTable& table) {
 
 /// The table's frames per second from its frame and time_s columns (first and last rows, to a
 /// thousandth: time_s is written to 0.1 ms); GRID's 25 without a time_s column or a second
-/// time. Throws naming the file for a rate outside 1..1000.
+/// time. Throws naming the file for a rate outside 1..1000, and for a row whose time lies more
+/// than a frame from where that rate puts its frame (a variable-frame-rate recording, a camera
+/// that slowed down): words placed by frame at one rate would fall on the wrong frames there.
 double frames_per_second(const CsvTable& table) {
   if (!has_column(table, "time_s")) return kGridFramesPerSecond;
   const std::vector<int> frames = frame_numbers(table);
@@ -106,6 +108,17 @@ double frames_per_second(const CsvTable& table) {
         fmt::format("{}: its frame and time_s columns give {:.3g} frames per second (1 to 1000 expected)",
                     table.path.string(), rate),
         kExitDataError);
+  }
+  for (std::size_t row = 0; row < frames.size(); ++row) {
+    const double expected_s = times.front() + (frames[row] - frames.front()) / rate;
+    if (!(std::abs(times[row] - expected_s) <= 1 / rate)) {
+      throw CommandError(
+          fmt::format("{}: frame {} is at {:.4f} s, {:.4f} s from where the first and last rows' {:.3g} frames per "
+                      "second put it: its frames are not at one rate (a variable-frame-rate recording?), so the "
+                      "words cannot be placed on them",
+                      table.path.string(), frames[row], times[row], times[row] - expected_s, rate),
+          kExitDataError);
+    }
   }
   return rate;
 }
