@@ -2,6 +2,7 @@
 // is reported with the file, the key and the reason.
 #include "build_paths.hpp"
 #include "command_run.hpp"
+#include "daemon_process.hpp"
 #include "firmware_app/config/config.hpp"
 #include "fixture_paths.hpp"
 
@@ -9,6 +10,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -390,14 +392,16 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
 // neutral, the status saying why) until it appears, instead of stopping on a configuration error
 // the service manager would not restart.
 TEST_F(ConfigTest, TheDaemonWaitsForACameraNotThereYet) {
-  write("type = \"v4l2\"\ndevice = \"/dev/video-lipdrive-missing\"");
+  write("type = \"v4l2\"\ndevice = \"/dev/video-lipdrive-missing\"", "[status]\nprint_interval_ms = 100\n");
   EXPECT_EQ(run_lipdrive("check-config " + file_.string()).exit_code, 0);
-  const test::CommandRun run =
-      test::run_command(fmt::format("timeout -s TERM 3 {} run --config {}", test::kLipdrive, file_.string()));
-  EXPECT_EQ(run.exit_code, 124) << "stopped by timeout's SIGTERM, not before: " << run.output;
-  EXPECT_THAT(run.output, HasSubstr("/dev/video-lipdrive-missing: cannot open the device: No such file or directory; "
-                                    "waiting for it"));
-  EXPECT_THAT(run.output, HasSubstr("0.0 fps, latency n/a, drive fail-safe, not tracked, dropped 0, camera disconnected"));
+  test::DaemonProcess daemon(file_, dir_ / "daemon.log");
+  EXPECT_TRUE(daemon.wait_for_log("0.0 fps, latency n/a, drive fail-safe, not tracked, dropped 0, camera disconnected"))
+      << daemon.log();
+  EXPECT_TRUE(daemon.running()) << daemon.log();
+  EXPECT_THAT(daemon.log(), HasSubstr("/dev/video-lipdrive-missing: cannot open the device: No such file or directory; "
+                                      "waiting for it"));
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(std::chrono::seconds(10)), 0) << daemon.log();
 }
 
 TEST_F(ConfigTest, RunRefusesANegativeFrameCount) {
