@@ -108,6 +108,8 @@ void SimulatedCamera::rewind() {
   if (kind_ == Kind::kVideo) open_video();
 }
 
+bool SimulatedCamera::follows_frame_times() const { return kind_ == Kind::kVideo && options_.replay_rate <= 0; }
+
 bool SimulatedCamera::wait_until_due(std::chrono::milliseconds timeout, std::int64_t shift_ns) const {
   const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
   const std::int64_t deadline = start_ns_ + static_cast<std::int64_t>(sequence_) * period_ns + shift_ns;
@@ -190,20 +192,20 @@ GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout
   if (const auto outage = injected_outage(timeout)) return *outage;
   if (options_.real_time) {
     if (start_ns_ == 0) start_ns_ = clock_ ? clock_->start_ns() : monotonic_ns();
-    if (!wait_until_due(timeout, expected_shift_ns_)) return GrabStatus::kTimeout;
+    // Frames a period apart are read when the next one is due (decoding then, as a camera
+    // delivers, not while the frame before is processed). A video's frames at their own times
+    // are read at once: when the next is due is known only from the frame itself (a faster
+    // stretch's first frame is due less than a period after the one before), and it is held
+    // until then.
+    if (!follows_frame_times() && !wait_until_due(timeout, 0)) return GrabStatus::kTimeout;
   }
-  // Read when the next frame is looked for (decoding then, as a camera delivers, not while the
-  // frame before is processed); a frame after slots the recorder left empty is held to its own.
+  // A frame after slots the recorder left empty is held to its own.
   if (!read_next()) {
     ended_ = true;
     return GrabStatus::kEndOfStream;
   }
   if (options_.real_time && !wait_until_due(timeout, held_shift_ns_)) return GrabStatus::kTimeout;
   held_ = false;
-  // The next frame is looked for a period after this one, or sooner where this one came less
-  // than a period after the one before (a stretch faster than the stated rate).
-  expected_shift_ns_ = held_shift_ns_ + std::min<std::int64_t>(held_shift_ns_ - delivered_shift_ns_, 0);
-  delivered_shift_ns_ = held_shift_ns_;
   frame = next_;
   // A frame that could not be decoded still used up its slot: the sequence gap shows it.
   frame.sequence = sequence_++;

@@ -89,6 +89,9 @@ class SimulatedCamera : public FrameSource {
   // Real-time pacing: false (after sleeping `timeout`) when the frame is not due yet. Slot n is
   // due at start + n periods, a frame `shift_ns` from its slot's time that much later.
   bool wait_until_due(std::chrono::milliseconds timeout, std::int64_t shift_ns) const;
+  // A video replayed at its own rate: each frame is due at its own time, not a period after the
+  // one before.
+  bool follows_frame_times() const;
   // Fault injection: the status while an injected disconnect or stall lasts, else nullopt.
   std::optional<GrabStatus> injected_outage(std::chrono::milliseconds timeout);
   // Fault injection on a frame just read: kFrame, or what the fault makes of it.
@@ -120,11 +123,9 @@ class SimulatedCamera : public FrameSource {
   bool held_ = false;
   bool ended_ = false;
   std::int64_t start_ns_ = 0;         // real-time pacing: deadline of frame n = start + n * period
-  // Real-time pacing at a video's own rate: a frame is due at its own time, this far from its
-  // slot's (a variable-rate clip's frames are not a period apart).
-  std::int64_t held_shift_ns_ = 0;       // the frame read last
-  std::int64_t delivered_shift_ns_ = 0;  // the frame delivered last
-  std::int64_t expected_shift_ns_ = 0;   // where the next frame is looked for before it is read
+  // Real-time pacing at a video's own rate: the frame read last is due at its own time, this far
+  // from its slot's (a variable-rate clip's frames are not a period apart).
+  std::int64_t held_shift_ns_ = 0;
   std::int64_t frames_read_ = 0;      // fault injection: frames read from the recording
   std::int64_t outage_until_ns_ = 0;  // fault injection: end of a disconnect or stall, 0 = none
   GrabStatus outage_status_ = GrabStatus::kTimeout;

@@ -462,8 +462,11 @@ TEST_F(SimulatedCameraTest, AVariableRateClipIsReplayedAtItsFramesOwnTimes) {
       EXPECT_NEAR(frame.media_time_s, times[i], 0.001) << "frame " << i;
       if (real_time) {
         const double delivered_s = static_cast<double>(frame.capture_time_ns - began_ns) * 1e-9;
+        // Late by no more than the decoding and a loaded 2-core machine's wake-up under
+        // AddressSanitizer (the CI's asan lane) take, well under the 20 ms by which a 50 fps
+        // frame read at the slot the one before suggests would be late.
         EXPECT_GE(delivered_s, times[i] - 0.001) << "frame " << i;
-        EXPECT_LT(delivered_s, times[i] + 0.1) << "frame " << i;
+        EXPECT_LT(delivered_s, times[i] + 0.015) << "frame " << i;
       }
     }
     EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
