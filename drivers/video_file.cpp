@@ -158,10 +158,11 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
 
   const AVRational rate = av_guess_frame_rate(format, video, nullptr);
   frame_rate_ = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 0;
+  if (format->duration > 0) length_s_ = static_cast<double>(format->duration) / AV_TIME_BASE;
   if (video->nb_frames > 0) {
     frame_count_ = video->nb_frames;
-  } else if (frame_rate_ > 0 && format->duration > 0) {
-    frame_count_ = std::llround(static_cast<double>(format->duration) / AV_TIME_BASE * frame_rate_);
+  } else if (frame_rate_ > 0) {
+    frame_count_ = std::llround(length_s_ * frame_rate_);
   }
   stated_frames_ = stated_frames(*format, *video, rate);
 }

@@ -52,6 +52,9 @@ class VideoFile {
   /// Frames the file declares (or its duration implies); 0 when unknown. One pass's length, no
   /// measure of damage (damage() is): the duration may be the sound's, or FFmpeg's estimate.
   std::int64_t frame_count() const { return frame_count_; }
+  /// The file's length in seconds as a player shows it: the longer of its picture and its sound
+  /// (the container's duration, or FFmpeg's estimate); 0 when unknown.
+  double length_s() const { return length_s_; }
   /// The slot of the frame read last: unique and increasing, where it lies on the file's timeline
   /// counted in periods of frame_rate() from the stream's start (its time times the frame rate,
   /// rounded), and at least the slot after the frame before; -1 before the first read. A
@@ -87,6 +90,7 @@ class VideoFile {
   std::unique_ptr<Decoder> decoder_;
   double frame_rate_ = 0;
   std::int64_t frame_count_ = 0;
+  double length_s_ = 0;
   std::int64_t stated_frames_ = 0;  // the picture's frames as the file states them exactly; 0: none
   std::int64_t frame_index_ = -1;
   std::optional<double> frame_time_s_;

@@ -97,6 +97,10 @@ void SimulatedCamera::open_video() {
 std::string SimulatedCamera::describe() const { return "sim:" + options_.input.string(); }
 
 double SimulatedCamera::duration_s() const {
+  // In whole periods of its rate, so that each pass begins in a slot of its own (and FFmpeg's
+  // estimate of an MPEG stream's length, which may end at its last frame's start, is covered).
+  if (follows_frame_times() && video_->length_s() > 0)
+    return std::ceil(video_->length_s() * frame_rate_ - 1e-6) / frame_rate_;
   const auto frames = kind_ == Kind::kVideo ? video_->frame_count() : static_cast<std::int64_t>(images_.size());
   return static_cast<double>(frames) / frame_rate_;
 }
@@ -104,6 +108,13 @@ double SimulatedCamera::duration_s() const {
 void SimulatedCamera::rewind() {
   position_ = 0;
   last_index_ = -1;
+  // The next pass begins a pass's length after this one (where the sound loops), and never
+  // before the slot after the last frame delivered (a file whose length falls short of it).
+  if (follows_frame_times()) {
+    pass_start_s_ = std::max(pass_start_s_ + duration_s(), static_cast<double>(sequence_) / frame_rate_);
+    sequence_ =
+        std::max<std::uint64_t>(sequence_, static_cast<std::uint64_t>(std::llround(pass_start_s_ * frame_rate_)));
+  }
   // Reopening is exact where seeking to frame 0 is not for every codec.
   if (kind_ == Kind::kVideo) open_video();
 }
@@ -235,7 +246,11 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
   // slots are the timeline.
   const double slot_time_s = static_cast<double>(index) / frame_rate_;
   frame.media_time_s = options_.replay_rate > 0 ? slot_time_s : video_->frame_time_s().value_or(slot_time_s);
-  held_shift_ns_ = std::llround((frame.media_time_s - slot_time_s) * 1e9);
+  // Due at its time in this pass, however far that lies from the slot it is delivered in.
+  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
+  held_shift_ns_ = follows_frame_times() ? std::llround((pass_start_s_ + frame.media_time_s) * 1e9) -
+                                               static_cast<std::int64_t>(sequence_) * period_ns
+                                         : 0;
   frame.source = video_path_;
   ++position_;
   return GrabStatus::kFrame;

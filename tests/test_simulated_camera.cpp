@@ -347,6 +347,37 @@ TEST_F(SimulatedCameraTest, AVideoWhoseSoundOutlastsItsPictureEndsCleanly) {
   }
 }
 
+// A looping replay restarts where the clip's simulated sound, looping at duration_s(), does: at
+// the recording's length, its sound's where that outlasts the picture, whatever the frames' rate.
+TEST_F(SimulatedCameraTest, ALoopingReplayRestartsItsPictureWhereItsSoundLoops) {
+  const auto source = write_video(kFrames);
+  const fs::path variable = dir_ / "variable.mkv";
+  const test::CommandRun made = test::variable_rate_clip(source, kFrames, variable);
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  const double sound_s = kFrames / kFps + 1;
+  for (const auto& [video, codecs] : {std::pair{source, std::string("-c:v mpeg4 -c:a aac -f matroska")},
+                                      std::pair{variable, std::string("-c:v copy -c:a aac -f matroska")}}) {
+    SCOPED_TRACE(codecs);
+    const fs::path clip = dir_ / "longer_sound.mkv";
+    ASSERT_NO_FATAL_FAILURE(add_longer_sound(video, codecs, clip));
+    ReplayClock clock;
+    SimulatedCamera camera({.input = clip, .real_time = true, .loop = true}, &clock);
+    const double pass_s = camera.duration_s();
+    EXPECT_NEAR(pass_s, sound_s, 2 / kFps);  // the sound's, with the AAC encoder's priming and padding
+    Frame frame;
+    for (int i = 0; i < kFrames; ++i) ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
+    // The picture holds its last frame through the sound's tail: the next frame is the first
+    // again, due where the sound starts over.
+    ASSERT_EQ(camera.grab(frame, milliseconds(2000)), GrabStatus::kFrame);
+    EXPECT_EQ(decoded_index(frame.gray), 0);
+    EXPECT_NEAR(frame.media_time_s, 0, 1e-9);
+    const double delivered_s = static_cast<double>(frame.capture_time_ns - clock.start_ns()) * 1e-9;
+    EXPECT_GE(delivered_s, pass_s - 0.001);
+    EXPECT_LT(delivered_s, pass_s + 1 / kFps);
+    EXPECT_EQ(frame.sequence, static_cast<std::uint64_t>(std::llround(pass_s * kFps)));
+  }
+}
+
 TEST_F(SimulatedCameraTest, AnMp4CutWithoutReencodingShowsItsCutAndEndsCleanly) {
   // Keyframes 0 and 10; the cut from frame 3 to 12 keeps frames 0-2 for the decoder, which
   // the edit list leaves unshown.
