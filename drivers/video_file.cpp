@@ -51,28 +51,29 @@ DisplayOrientation orientation_of_exif(const char* tag) {
 /// The frames the file states exactly that its picture shows, in periods of `rate`; 0 where it
 /// states none. Its declared frames (an AVI's header says so even where its index is lost), no
 /// more than its duration covers in an MP4 or QuickTime file (whose edit list may leave frames
-/// it holds unshown: a cut with -c copy between keyframes); else a Matroska track's DURATION tag
-/// (where it ends) from its start. Not the file's length, which its sound may outlast, nor the
+/// it holds unshown: a cut with -c copy between keyframes), rounded down: a frame it covers only
+/// in part may not be shown. Not the file's length, which its sound may outlast, nor the
 /// duration FFmpeg estimates from timestamps where a file states none (an MPEG program or
-/// transport stream: it may be a frame's). Durations rounded down: a frame one covers only in
-/// part may not be shown.
+/// transport stream: it may be a frame's).
 std::int64_t stated_frames(const AVFormatContext& format, const AVStream& video, AVRational rate) {
-  const bool known_rate = rate.num > 0 && rate.den > 0;
-  const auto periods = [rate](std::int64_t length, AVRational time_base) {
-    return av_rescale_q_rnd(length, time_base, av_inv_q(rate), AV_ROUND_DOWN);
-  };
-  if (video.nb_frames > 0) {
-    const bool edited = std::string_view(format.iformat->name).starts_with("mov,");
-    return edited && known_rate && video.duration > 0
-               ? std::min(video.nb_frames, periods(video.duration, video.time_base))
-               : video.nb_frames;
-  }
+  if (video.nb_frames <= 0) return 0;
+  const bool edited = std::string_view(format.iformat->name).starts_with("mov,");
+  return edited && rate.num > 0 && rate.den > 0 && video.duration > 0
+             ? std::min(video.nb_frames,
+                        av_rescale_q_rnd(video.duration, video.time_base, av_inv_q(rate), AV_ROUND_DOWN))
+             : video.nb_frames;
+}
+
+/// Where a Matroska track's DURATION tag says its picture ends, in seconds from its start; none
+/// without one. A time, not a count of frames at the one rate the file states: a variable-rate
+/// clip's frames, or a last frame shown longer than a period, do not fill that rate's slots.
+std::optional<double> stated_end_s(const AVStream& video) {
   const AVDictionaryEntry* tag = av_dict_get(video.metadata, "DURATION", nullptr, AV_DICT_IGNORE_SUFFIX);
   std::int64_t end = 0;
-  if (!known_rate || tag == nullptr || av_parse_time(&end, tag->value, 1) != 0) return 0;
+  if (tag == nullptr || av_parse_time(&end, tag->value, 1) != 0) return std::nullopt;
   const std::int64_t start =
       video.start_time == AV_NOPTS_VALUE ? 0 : av_rescale_q(video.start_time, video.time_base, AV_TIME_BASE_Q);
-  return periods(std::max<std::int64_t>(end - start, 0), AV_TIME_BASE_Q);
+  return static_cast<double>(std::max<std::int64_t>(end - start, 0)) / AV_TIME_BASE;
 }
 
 }  // namespace
@@ -165,6 +166,7 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
     frame_count_ = std::llround(length_s_ * frame_rate_);
   }
   stated_frames_ = stated_frames(*format, *video, rate);
+  if (stated_frames_ == 0) stated_end_s_ = stated_end_s(*video);
 }
 
 VideoFile::~VideoFile() = default;
@@ -175,11 +177,19 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   Decoder& d = *decoder_;
   if (!d.next()) {
     // How far the frames reached on the file's timeline: slots a recorder left empty are not
-    // missing.
+    // missing. Against a stated end, the last frame lasts as long as the gap before it (a
+    // period where unknown), and may be shown up to a period longer.
+    const double period_s = frame_rate_ > 0 ? 1 / frame_rate_ : 0;
+    const double reached_s = frame_time_s_
+                                 ? *frame_time_s_ + (previous_time_s_ ? *frame_time_s_ - *previous_time_s_ : period_s)
+                                 : static_cast<double>(frame_index_ + 1) * period_s;
     if (d.damage.empty() && frame_index_ + 1 < stated_frames_)
       d.damage = fmt::format("the file states {} frames", stated_frames_);
+    else if (d.damage.empty() && stated_end_s_ && period_s > 0 && reached_s + period_s < *stated_end_s_)
+      d.damage = fmt::format("the file states its picture lasts {:.3f} s", *stated_end_s_);
     return false;
   }
+  previous_time_s_ = frame_time_s_;
   frame_time_s_ = d.picture_time_s();
   const std::int64_t slot = frame_time_s_ && frame_rate_ > 0 ? std::llround(*frame_time_s_ * frame_rate_) : -1;
   frame_index_ = std::max(frame_index_ + 1, slot);

@@ -139,6 +139,36 @@ TEST_F(MediaFilesTest, AVariableRateClipsFramesCarryTheirOwnTimes) {
   }
 }
 
+// A variable-rate Matroska clip (25 fps stated) that ends slower than its stated rate, a frame
+// every 120 ms, its last shown for 150 ms: read whole, it ends cleanly, though its DURATION
+// (1.83 s) over the stated rate counts more slots (45) than its frames reach (43).
+TEST_F(MediaFilesTest, AVariableRateMatroskaClipEndingSlowerIsWholeWhereItsFramesReachItsDuration) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  constexpr int kFrames = 40, kFast = 30;
+  const fs::path clip = dir_ / "slow_end.mkv";
+  // As test::variable_rate_clip() makes its clip: the frames given new times, every one kept.
+  const test::CommandRun made = test::run_command(fmt::format(
+      "ffmpeg -v error -y -i {} -frames:v {} -an -vf \"settb=1/1000,setpts='20*min(N\\,{})+120*max(N-{}\\,0)'\" "
+      "-fps_mode passthrough -enc_time_base 1/1000 -c:v mjpeg -q:v 3 "
+      "-bsf:v \"setts=duration=if(eq(N\\,{})\\,150\\,DURATION)\" {}",
+      test::kClip.string(), kFrames, kFast, kFast, kFrames - 1, clip.string()));
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  const auto read_all = [](const fs::path& file, int& frames) {
+    VideoFile video(file);
+    cv::Mat gray, cr;
+    frames = 0;
+    while (video.read(gray, cr)) ++frames;
+    return video.damage();
+  };
+  {
+    VideoFile video(clip);
+    EXPECT_DOUBLE_EQ(video.frame_rate(), 25);
+  }
+  int frames = 0;
+  EXPECT_EQ(read_all(clip, frames), "");
+  EXPECT_EQ(frames, kFrames);
+}
+
 TEST_F(MediaFilesTest, ImagesReadAsOpenCvReadsThem) {
   const cv::Mat card = test_card();
   const fs::path png = dir_ / "card.png", jpeg = dir_ / "card.jpg", pgm = dir_ / "card.pgm";
