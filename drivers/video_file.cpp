@@ -88,7 +88,7 @@ struct VideoFile::Decoder {
   ffmpeg::PictureConverter planes;
   int stream = -1;
   bool draining = false;    // the demuxer is at its end; the decoder gives back what it holds
-  bool packet_cut = false;  // the packet read last came short of the size the file gave it
+  bool packet_cut = false;  // the picture's packet read last came short of the size the file gave it
   std::string damage;       // what went wrong where the pictures ended; empty at a clean end
 
   [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
@@ -124,9 +124,13 @@ struct VideoFile::Decoder {
         avcodec_send_packet(codec.get(), nullptr);
         continue;
       }
-      packet_cut = (packet->flags & AV_PKT_FLAG_CORRUPT) != 0;
-      // A packet the decoder rejects is skipped, as a player does; the rest still decodes.
-      if (packet->stream_index == stream) avcodec_send_packet(codec.get(), packet.get());
+      // A packet the decoder rejects is skipped, as a player does; the rest still decodes. Only
+      // the picture's packets tell its damage: a file cut inside the sound that runs on after
+      // its last frame has shown all of its picture.
+      if (packet->stream_index == stream) {
+        packet_cut = (packet->flags & AV_PKT_FLAG_CORRUPT) != 0;
+        avcodec_send_packet(codec.get(), packet.get());
+      }
       av_packet_unref(packet.get());
     }
   }

@@ -16,8 +16,10 @@
 
 #include <array>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <unistd.h>
 
@@ -426,6 +428,45 @@ TEST_F(SimulatedCameraTest, AVideoCutShortYieldsFramesThenCorruptThenEnd) {
     EXPECT_NE(camera.last_error()->find(clip.string()), std::string::npos) << *camera.last_error();
     EXPECT_NE(camera.last_error()->find("damaged or truncated"), std::string::npos) << *camera.last_error();
     EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+  }
+}
+
+// A file cut inside the sound that runs on after its last frame shows its whole picture: every
+// frame, then a clean end (what a replay shows is its picture, and none of it is missing).
+TEST_F(SimulatedCameraTest, AVideoCutInsideTheSoundAfterItsLastFrameEndsCleanly) {
+  const auto source = write_video(kFrames);
+  for (const std::string codecs : {"-c:v mpeg4 -c:a aac -f matroska", "-c:v flv -c:a aac -f flv"}) {
+    SCOPED_TRACE(codecs);
+    const fs::path clip = dir_ / "cut_in_sound";
+    ASSERT_NO_FATAL_FAILURE(add_longer_sound(source, codecs, clip));
+    // Where each packet lies in the file: the cut falls inside a sound packet after the last frame's.
+    const test::CommandRun packets = test::run_command(
+        fmt::format("ffprobe -v error -show_entries packet=codec_type,size,pos -of csv=p=0 {}", clip.string()));
+    ASSERT_EQ(packets.exit_code, 0) << packets.output;
+    std::istringstream lines(packets.output);
+    std::int64_t last_video_end = 0, cut = 0;
+    for (std::string line; std::getline(lines, line);) {
+      char type[16] = {};
+      long long size = 0, pos = 0;
+      if (std::sscanf(line.c_str(), "%15[^,],%lld,%lld", type, &size, &pos) != 3) continue;
+      if (std::string_view(type) == "video") {
+        last_video_end = pos + size;
+        cut = 0;
+      } else if (cut == 0 && pos >= last_video_end && last_video_end > 0) {
+        cut = pos + size / 2;  // the first sound packet after the last frame's
+      }
+    }
+    ASSERT_GT(cut, last_video_end) << packets.output;
+    fs::resize_file(clip, static_cast<std::uintmax_t>(cut));
+    SimulatedCamera camera({.input = clip});
+    Frame frame;
+    int delivered = 0;
+    GrabStatus status;
+    while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame)
+      EXPECT_EQ(decoded_index(frame.gray), delivered++);
+    EXPECT_EQ(delivered, kFrames);
+    EXPECT_EQ(status, GrabStatus::kEndOfStream);
+    EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
   }
 }
 
