@@ -516,14 +516,11 @@ TEST_F(SimulatedCameraTest, AVariableRateClipIsReplayedAtItsFramesOwnTimes) {
   const test::CommandRun made = test::variable_rate_clip(write_video(kFrames), kFrames, clip);
   ASSERT_EQ(made.exit_code, 0) << made.output;
   const std::vector<double> times = test::variable_rate_times(kFrames);
-  // As fast as it decodes and in real time at its own rate: each frame's media time is its own,
-  // and in real time it is delivered then (its sound is heard then), the frames at 50 fps too;
-  // the sequence numbers stay unique and increasing.
-  for (const bool real_time : {false, true}) {
-    SCOPED_TRACE(real_time ? "in real time" : "as fast as it decodes");
-    SimulatedCamera camera({.input = clip, .real_time = real_time});
+  // As fast as it decodes: each frame's media time is its own; the sequence numbers stay unique
+  // and increasing.
+  {
+    SimulatedCamera camera({.input = clip, .real_time = false});
     EXPECT_DOUBLE_EQ(camera.frame_rate(), kFps);
-    const std::int64_t began_ns = monotonic_ns();
     Frame frame;
     std::int64_t last_sequence = -1;
     for (int i = 0; i < kFrames; ++i) {
@@ -532,17 +529,32 @@ TEST_F(SimulatedCameraTest, AVariableRateClipIsReplayedAtItsFramesOwnTimes) {
       EXPECT_GT(static_cast<std::int64_t>(frame.sequence), last_sequence) << "frame " << i;
       last_sequence = static_cast<std::int64_t>(frame.sequence);
       EXPECT_NEAR(frame.media_time_s, times[i], 0.001) << "frame " << i;
-      if (real_time) {
-        const double delivered_s = static_cast<double>(frame.capture_time_ns - began_ns) * 1e-9;
-        // Late by no more than the decoding and a loaded 2-core machine's wake-up under
-        // AddressSanitizer (the CI's asan lane) take, well under the 20 ms by which a 50 fps
-        // frame read at the slot the one before suggests would be late.
-        EXPECT_GE(delivered_s, times[i] - 0.001) << "frame " << i;
-        EXPECT_LT(delivered_s, times[i] + 0.015) << "frame " << i;
-      }
     }
     EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
   }
+  // In real time at its own rate each frame is delivered at its own time (its sound is heard
+  // then), the frames at 50 fps too: never early, and late by no more than a wake-up. The
+  // lateness is the best of up to three replays: a host's pause can hold up one frame of one
+  // replay (the CI's asan lane shares two cores), while a frame read at the slot the one before
+  // suggests is 20 ms late in every replay.
+  double best_lateness_s = 1;
+  for (int replay = 0; replay < 3 && best_lateness_s >= 0.015; ++replay) {
+    SimulatedCamera camera({.input = clip, .real_time = true});
+    const std::int64_t began_ns = monotonic_ns();
+    Frame frame;
+    double lateness_s = 0;
+    for (int i = 0; i < kFrames; ++i) {
+      ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
+      EXPECT_EQ(decoded_index(frame.gray), i);
+      EXPECT_NEAR(frame.media_time_s, times[i], 0.001) << "frame " << i;
+      const double delivered_s = static_cast<double>(frame.capture_time_ns - began_ns) * 1e-9;
+      EXPECT_GE(delivered_s, times[i] - 0.001) << "frame " << i;
+      lateness_s = std::max(lateness_s, delivered_s - times[i]);
+    }
+    EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
+    best_lateness_s = std::min(best_lateness_s, lateness_s);
+  }
+  EXPECT_LT(best_lateness_s, 0.015);
   // At a replay rate of its own, its frames come at that rate whatever their times, and their
   // media times are the replay's.
   SimulatedCamera camera({.input = clip, .replay_rate = 100});
