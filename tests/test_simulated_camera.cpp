@@ -46,6 +46,20 @@ int decoded_index(const cv::Mat& gray) {
   return static_cast<int>(std::lround((cv::mean(corner)[0] - 10) / 10));
 }
 
+/// Replays `clip` as fast as it decodes: each of its kFrames frames in order, then a clean end
+/// with no error reported.
+void expect_every_frame_then_a_clean_end(const fs::path& clip) {
+  SimulatedCamera camera({.input = clip});
+  Frame frame;
+  int delivered = 0;
+  GrabStatus status;
+  while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame)
+    EXPECT_EQ(decoded_index(frame.gray), delivered++);
+  EXPECT_EQ(delivered, kFrames);
+  EXPECT_EQ(status, GrabStatus::kEndOfStream);
+  EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
+}
+
 class SimulatedCameraTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -337,15 +351,7 @@ TEST_F(SimulatedCameraTest, AVideoWhoseSoundOutlastsItsPictureEndsCleanly) {
     SCOPED_TRACE(codecs);
     const fs::path clip = dir_ / "longer_sound";
     ASSERT_NO_FATAL_FAILURE(add_longer_sound(source, codecs, clip));
-    SimulatedCamera camera({.input = clip});
-    Frame frame;
-    int delivered = 0;
-    GrabStatus status;
-    while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame)
-      EXPECT_EQ(decoded_index(frame.gray), delivered++);
-    EXPECT_EQ(delivered, kFrames);
-    EXPECT_EQ(status, GrabStatus::kEndOfStream);
-    EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
+    expect_every_frame_then_a_clean_end(clip);
   }
 }
 
@@ -458,15 +464,7 @@ TEST_F(SimulatedCameraTest, AVideoCutInsideTheSoundAfterItsLastFrameEndsCleanly)
     }
     ASSERT_GT(cut, last_video_end) << packets.output;
     fs::resize_file(clip, static_cast<std::uintmax_t>(cut));
-    SimulatedCamera camera({.input = clip});
-    Frame frame;
-    int delivered = 0;
-    GrabStatus status;
-    while ((status = camera.grab(frame, kLongTimeout)) == GrabStatus::kFrame)
-      EXPECT_EQ(decoded_index(frame.gray), delivered++);
-    EXPECT_EQ(delivered, kFrames);
-    EXPECT_EQ(status, GrabStatus::kEndOfStream);
-    EXPECT_FALSE(camera.last_error().has_value()) << camera.last_error().value_or("");
+    expect_every_frame_then_a_clean_end(clip);
   }
 }
 
