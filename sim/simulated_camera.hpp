@@ -66,11 +66,11 @@ class SimulatedCamera : public FrameSource {
   std::string describe() const override;
   /// One pass through the recording, in seconds: a looping replay restarts this often, and the
   /// clip's simulated sound loops at it too, so the two stay in step pass after pass. A video at
-  /// its own rate: the file's length as a player shows it, the longer of its picture and its sound
-  /// (a sound that outlasts the picture is heard to its end, the picture holding its last frame:
-  /// no frames come in its tail, the slots there left empty), in whole periods of its rate; where the file states no
-  /// length, its frames at its rate. At a replay rate, and images: the frames at that rate. 0 when a video says
-  /// neither.
+  /// its own rate: the file's length as a player shows it, the longer of its picture and its
+  /// sound (a sound that outlasts the picture is heard to its end, the picture holding its last
+  /// frame: no frames come in its tail, the slots there left empty), in whole periods of its
+  /// rate; where the file states no length, its frames at its rate. At a replay rate, and
+  /// images: the frames at that rate. 0 when a video says neither.
   double duration_s() const;
 
   /// Images (a folder or a single one): every frame is unrelated to the last, so a tracker
@@ -131,7 +131,7 @@ class SimulatedCamera : public FrameSource {
   // Real-time pacing at a video's own rate: the frame read last is due at its own time, this far
   // from its slot's (a variable-rate clip's frames are not a period apart).
   std::int64_t held_shift_ns_ = 0;
-  double pass_start_s_ = 0;           // a video at its own rate: where this pass begins on the replay's timeline
+  double pass_start_s_ = 0;  // a video at its own rate: where this pass begins on the replay's timeline
   std::int64_t frames_read_ = 0;      // fault injection: frames read from the recording
   std::int64_t outage_until_ns_ = 0;  // fault injection: end of a disconnect or stall, 0 = none
   GrabStatus outage_status_ = GrabStatus::kTimeout;
