@@ -76,12 +76,13 @@ class VideoFile {
   bool read(cv::Mat& gray, cv::Mat& cr);
   /// Once read() has returned false: what shows the file damaged or truncated there, empty where
   /// it simply ended. Judged from what went wrong while reading (the demuxer or the decoder
-  /// failed; the file ends inside a packet of its picture) or, where the file states exactly how many frames
-  /// its picture shows (an AVI's or MP4's frame count, as an MP4's edit list shows them) or
-  /// where it ends (a Matroska track's DURATION), frames ending short of it (the last frame's
-  /// time and the gap before it more than a period short of that end). Not from the file's length, which
-  /// its sound may outlast, nor from durations FFmpeg estimates (an MPEG program or transport
-  /// stream states none: one cut between its packets ends as a shorter one does).
+  /// failed; the file ends inside a packet of its picture) or, where the file states exactly
+  /// how many frames its picture shows (an AVI's or MP4's frame count, as an MP4's edit list
+  /// shows them) or where it ends (a Matroska track's DURATION), frames ending short of it (the
+  /// last frame's time and the gap before it more than a period short of that end). Not from
+  /// the file's length, which its sound may outlast, nor from durations FFmpeg estimates (an
+  /// MPEG program or transport stream states none: one cut between its packets ends as a
+  /// shorter one does).
   const std::string& damage() const;
   /// How the frame read last is meant to be seen.
   DisplayOrientation orientation() const { return orientation_; }
@@ -92,7 +93,7 @@ class VideoFile {
   double frame_rate_ = 0;
   std::int64_t frame_count_ = 0;
   double length_s_ = 0;
-  std::int64_t stated_frames_ = 0;  // the picture's frames as the file states them exactly; 0: none
+  std::int64_t stated_frames_ = 0;      // the picture's frames as the file states them exactly; 0: none
   std::optional<double> stated_end_s_;  // where a Matroska track says its picture ends
   std::int64_t frame_index_ = -1;
   std::optional<double> frame_time_s_, previous_time_s_;  // the frame read last, and the one before

@@ -119,10 +119,12 @@ void SimulatedCamera::rewind() {
   if (kind_ == Kind::kVideo) open_video();
 }
 
+std::int64_t SimulatedCamera::period_ns_of_rate() const { return std::llround(1e9 / frame_rate_); }
+
 bool SimulatedCamera::follows_frame_times() const { return kind_ == Kind::kVideo && options_.replay_rate <= 0; }
 
 bool SimulatedCamera::wait_until_due(std::chrono::milliseconds timeout, std::int64_t shift_ns) const {
-  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
+  const std::int64_t period_ns = period_ns_of_rate();
   const std::int64_t deadline = start_ns_ + static_cast<std::int64_t>(sequence_) * period_ns + shift_ns;
   const std::int64_t now = monotonic_ns();
   const std::int64_t timeout_ns = std::chrono::nanoseconds(timeout).count();
@@ -148,13 +150,13 @@ std::optional<GrabStatus> SimulatedCamera::injected_outage(std::chrono::millisec
     return std::nullopt;
   }
   // Resume at the recording's pace from now on, not with a burst of overdue frames.
-  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
+  const std::int64_t period_ns = period_ns_of_rate();
   start_ns_ = monotonic_ns() - static_cast<std::int64_t>(sequence_) * period_ns;
   return std::nullopt;
 }
 
 void SimulatedCamera::skip_frames_due() {
-  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
+  const std::int64_t period_ns = period_ns_of_rate();
   const auto due = static_cast<std::uint64_t>(std::max<std::int64_t>(monotonic_ns() - start_ns_, 0) / period_ns);
   while (sequence_ < due) {
     if (!read_next()) return;  // grab() finds the end itself
@@ -245,11 +247,10 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
   // apart, and its sound is heard at their times. At a replay rate of its own the replay's
   // slots are the timeline.
   const double slot_time_s = static_cast<double>(index) / frame_rate_;
-  frame.media_time_s = options_.replay_rate > 0 ? slot_time_s : video_->frame_time_s().value_or(slot_time_s);
+  frame.media_time_s = follows_frame_times() ? video_->frame_time_s().value_or(slot_time_s) : slot_time_s;
   // Due at its time in this pass, however far that lies from the slot it is delivered in.
-  const auto period_ns = static_cast<std::int64_t>(std::llround(1e9 / frame_rate_));
   held_shift_ns_ = follows_frame_times() ? std::llround((pass_start_s_ + frame.media_time_s) * 1e9) -
-                                               static_cast<std::int64_t>(sequence_) * period_ns
+                                               static_cast<std::int64_t>(sequence_) * period_ns_of_rate()
                                          : 0;
   frame.source = video_path_;
   ++position_;

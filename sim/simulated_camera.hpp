@@ -97,6 +97,8 @@ class SimulatedCamera : public FrameSource {
   // A video replayed at its own rate: each frame is due at its own time, not a period after the
   // one before.
   bool follows_frame_times() const;
+  // One frame period at frame_rate_ (the replay's slots), in nanoseconds.
+  std::int64_t period_ns_of_rate() const;
   // Fault injection: the status while an injected disconnect or stall lasts, else nullopt.
   std::optional<GrabStatus> injected_outage(std::chrono::milliseconds timeout);
   // Fault injection on a frame just read: kFrame, or what the fault makes of it.
@@ -131,7 +133,7 @@ class SimulatedCamera : public FrameSource {
   // Real-time pacing at a video's own rate: the frame read last is due at its own time, this far
   // from its slot's (a variable-rate clip's frames are not a period apart).
   std::int64_t held_shift_ns_ = 0;
-  double pass_start_s_ = 0;  // a video at its own rate: where this pass begins on the replay's timeline
+  double pass_start_s_ = 0;           // a video at its own rate: where this pass begins on the replay's timeline
   std::int64_t frames_read_ = 0;      // fault injection: frames read from the recording
   std::int64_t outage_until_ns_ = 0;  // fault injection: end of a disconnect or stall, 0 = none
   GrabStatus outage_status_ = GrabStatus::kTimeout;

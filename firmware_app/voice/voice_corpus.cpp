@@ -123,9 +123,9 @@ VoiceRecording load_take(const fs::path& take, int sample_rate) {
   // Rows past the end of the sound would be paired with no sound; beyond kTakeSoundSlack_s the
   // sound is not the one recorded with them (another take's, or one cut short).
   const double sound_s = static_cast<double>(recording.samples.size()) / sample_rate;
-  const auto past_end =
-      std::ranges::find_if(recording.targets, [&](const VoiceTargetFrame& t) { return t.time_s > sound_s; });
   if (!recording.targets.empty() && recording.targets.back().time_s > sound_s + kTakeSoundSlack_s) {
+    const auto past_end =
+        std::ranges::find_if(recording.targets, [&](const VoiceTargetFrame& t) { return t.time_s > sound_s; });
     const auto first = static_cast<std::size_t>(past_end - recording.targets.begin());
     throw CommandError(fmt::format("{}:{}: this row and the {} after it lie up to {:.2f} s past the end of its sound "
                                    "{} ({:.2f} s long; another take's, or one cut short)",
