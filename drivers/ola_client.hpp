@@ -3,10 +3,11 @@
 // to wherever it is patched: sACN (E1.31), Art-Net, USB DMX widgets. It also merges
 // sources by priority, so a console can take over the same universe.
 //
-// Thread model: one owner thread calls everything. send() writes to a loopback TCP socket
-// and can block while olad does not read; an owner that must not block gives the client
-// a thread of its own. Connecting, sending and the DmxBuffer copy allocate (libola and
-// protobuf), on that thread.
+// Thread model: one owner thread calls everything. send() writes to libola's non-blocking
+// loopback TCP socket: when olad stops reading, the kernel's buffers fill (about 7,000
+// universes) and the send that finds no room fails (tests/test_dmx.cpp). connect() is a
+// blocking TCP connect to 127.0.0.1. Connecting, sending and the DmxBuffer copy allocate
+// (libola and protobuf), on that thread.
 #pragma once
 
 #include <cstdint>
@@ -41,7 +42,7 @@ class OlaDmxClient {
 
   /// Sends `slots` (slot 1 first, at most 512) to `universe` with a source priority
   /// (0..200, 100 is the default of every source). False, and disconnected, when olad has
-  /// gone away or refused the data.
+  /// gone away, refused the data or stopped reading (its socket's buffers are full).
   bool send(unsigned universe, std::span<const std::uint8_t> slots, std::uint8_t priority);
 
   /// "olad 127.0.0.1:9010".

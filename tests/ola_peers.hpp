@@ -119,8 +119,16 @@ class OladProcess {
     ::waitpid(pid_, nullptr, 0);
     pid_ = -1;
   }
+  /// SIGSTOP / SIGCONT: olad hangs (still accepting connections, reading nothing) and wakes.
+  void pause() const {
+    if (pid_ > 0) ::kill(pid_, SIGSTOP);
+  }
+  void resume() const {
+    if (pid_ > 0) ::kill(pid_, SIGCONT);
+  }
   void stop() {
     if (pid_ <= 0) return;
+    resume();  // a stopped process holds its SIGTERM until it runs again
     ::kill(pid_, SIGTERM);
     ::waitpid(pid_, nullptr, 0);
     pid_ = -1;

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 namespace lipdrive {
@@ -132,6 +133,31 @@ TEST(OlaDmxClient, OladHoldsWhatWasSentAndTheClientNoticesARestart) {
       },
       3s));
   EXPECT_EQ(watcher->updates().back().slots[0], 0x11);
+}
+
+TEST(OlaDmxClient, AnOladThatStopsReadingFailsASendInsteadOfBlockingIt) {
+  if (!test::OladProcess::installed()) GTEST_SKIP() << "olad is not installed (Debian package ola)";
+  test::OladProcess olad(test::free_port());
+  OlaDmxClient client(olad.rpc_port());
+  ASSERT_TRUE(client.connect());
+  std::array<std::uint8_t, kDmxUniverseSlots> universe{};
+  ASSERT_TRUE(client.send(7, universe, 100));
+
+  // olad hangs: what is sent piles up in the kernel's socket buffers until they are full. libola's
+  // socket does not block there: the send that finds no room fails and the client disconnects.
+  olad.pause();
+  const auto start = std::chrono::steady_clock::now();
+  int sends = 0;
+  bool failed = false;
+  while (!failed && sends < 1'000'000 && std::chrono::steady_clock::now() - start < 20s) {
+    failed = !client.send(7, universe, 100);
+    ++sends;
+  }
+  olad.resume();
+  EXPECT_TRUE(failed) << sends << " sends went through to a stopped olad";
+  EXPECT_FALSE(client.connected());
+  RecordProperty("sends_before_failure", sends);
+  std::printf("a stopped olad: send %d failed\n", sends);
 }
 
 }  // namespace

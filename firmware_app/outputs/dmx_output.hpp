@@ -9,7 +9,7 @@
 // restarted: the output reports itself failing and reconnects with the shared back-off.
 //
 // Thread model: that of every SenderOutput (sender_output.hpp); the OLA client is the sender
-// thread's, so an olad that stops reading blocks only that thread.
+// thread's. An olad that hangs is noticed when its socket's buffers are full (docs/dmx.md).
 #pragma once
 
 #include "drivers/ola_client.hpp"
