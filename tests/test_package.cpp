@@ -247,6 +247,14 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   EXPECT_THAT(" " + unit_value(unit, "SupplementaryGroups") + " ", HasSubstr(" " + gpio_group + " "));
   EXPECT_TRUE(std::regex_search(read_file(root / "etc/group"), std::regex("(^|\n)" + gpio_group + ":x:")))
       << read_file(root / "etc/group");
+  // The user is a member of every group the unit gives the daemon, so a command run by hand as
+  // that user reaches the same devices.
+  std::istringstream groups(unit_value(unit, "SupplementaryGroups"));
+  for (std::string group; groups >> group;)
+    EXPECT_TRUE(std::regex_search(read_file(root / "etc/group"),
+                                  std::regex("(^|\n)" + group + ":x:\\d+:([^\n]*,)?" + user + "(,|\n)")))
+        << group << " lacks " << user << ":\n"
+        << read_file(root / "etc/group");
   const fs::path wants = root / "etc/systemd/system/multi-user.target.wants/lipdrive.service";
   ASSERT_TRUE(fs::is_symlink(wants)) << "the unit is enabled on install";
   EXPECT_TRUE(fs::is_regular_file(root.string() + fs::read_symlink(wants).string())) << fs::read_symlink(wants);
