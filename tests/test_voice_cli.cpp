@@ -195,6 +195,18 @@ TEST(VoiceCli, ATakeWhoseRowsRunPastTheEndOfItsSoundIsADataErrorSayingHowFar) {
       std::string::npos)
       << run.output;
   EXPECT_FALSE(fs::exists(out));
+
+  // Another, longer take's sound: 2.5 s under rows that end at 2.0 s (the last row's frame).
+  cut_sound(b, 2.5);
+  run = test::run_command(lipdrive(
+      fmt::format("voice train --hidden 0 --past-ms 40 --out {} {} {}", out.string(), a.string(), b.string())));
+  EXPECT_EQ(run.exit_code, 65) << run.output;
+  EXPECT_NE(run.output.find(fmt::format("{}: 2.50 s long, 0.50 s longer than the 50 rows of {} (2.00 s); another "
+                                        "take's sound",
+                                        fs::path(b).replace_extension(".wav").string(), b.string())),
+            std::string::npos)
+      << run.output;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
