@@ -243,6 +243,21 @@ TEST_F(EvalPlotTest, EvalPlacesTheWordsFromTheEarliestRowWhateverItsFrameNumber)
   }
 }
 
+TEST_F(EvalPlotTest, EvalOfARowFarPastTheWordsCostsNoMemoryAndScalesAsAnyOther) {
+  // The worked example and one row more past its words, its value the highest: at frame 40 and at
+  // frame 900,000,000 (a table without time_s, so its rate is not checked) the figures are the
+  // same; the frames between are not held one by one (a row at 999,999,999 took 15.7 GB and 55 s).
+  std::string csv = "frame,tracked,open\n";
+  for (std::size_t f = 0; f < kWorkedOpen.size(); ++f) csv += fmt::format("{},1,{}\n", f, kWorkedOpen[f]);
+  const nlohmann::json near = closure_of(csv + "40,1,2.0\n"), far = closure_of(csv + "900000000,1,2.0\n");
+  ASSERT_FALSE(near.empty());
+  EXPECT_EQ(far, near);
+  // Scaled by the new maximum 2.0: the opening halves.
+  EXPECT_NEAR(near.at("opening").get<double>(), 0.5, 1e-9);
+  EXPECT_NEAR(near.at("silence_median").get<double>(), 0.05, 1e-9);
+  EXPECT_EQ(near.at("closures_seen"), 2);  // "please": its window's lowest, 0.3, scales to 0.15
+}
+
 TEST_F(EvalPlotTest, EvalReportsWordsPastTheRowsAsOutsideNotAsMissedClosures) {
   // The worked example cut after frame 5: "please" (frames 7-8) and the final silence are
   // not in the recording.
