@@ -5,10 +5,12 @@
 // Allocations are counted by tests/allocation_counter.cpp on the processing thread alone.
 #include "allocation_counter.hpp"
 #include "build_paths.hpp"
+#include "captured_log.hpp"
 #include "daemon_process.hpp"
 #include "drivers/cpu_latency.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
+#include "firmware_app/daemon/capture.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
@@ -22,6 +24,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -41,6 +44,7 @@
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
+#include <vector>
 
 namespace lipdrive {
 namespace {
@@ -431,6 +435,54 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   EXPECT_NEAR(to_neutral_ms, 500, 60);
   EXPECT_TRUE(watch.fail_safe_at_neutral);
   EXPECT_TRUE(watch.followed_again) << "the drive follows the face again after the reconnect";
+}
+
+/// A camera the test plugs in and unplugs: while it is away, grab() says so after a while of
+/// its timeout, as a camera waiting for its device does.
+class PluggableCamera final : public FrameSource {
+ public:
+  explicit PluggableCamera(std::unique_ptr<FrameSource> camera) : camera_(std::move(camera)) {}
+  GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override {
+    if (plugged_in) return camera_->grab(frame, timeout);
+    std::this_thread::sleep_for(std::min(timeout, std::chrono::milliseconds(20)));
+    ++away_grabs;
+    return GrabStatus::kDisconnected;
+  }
+  double frame_rate() const override { return camera_->frame_rate(); }
+  std::string describe() const override { return "pluggable camera"; }
+
+  std::atomic<bool> plugged_in{false};
+  std::atomic<int> away_grabs{0};
+
+ private:
+  std::unique_ptr<FrameSource> camera_;
+};
+
+// A camera not there at start (enumerated after the daemon started at boot) was never
+// connected: only its loss after frames is a disconnect, counted and logged.
+TEST_F(PipelineTest, ACameraAbsentAtStartIsNoDisconnectButItsUnplugAfterFramesIs) {
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  auto pluggable = std::make_unique<PluggableCamera>(std::make_unique<SimulatedCamera>(options));
+  PluggableCamera& camera = *pluggable;
+  const testing::CapturedLog log;
+  Capture capture(std::move(pluggable), "", "holding");
+  capture.start("test-capture", 0);
+  wait_for([&] { return camera.away_grabs >= 5; }, 10s);
+  EXPECT_FALSE(capture.connected());
+  EXPECT_EQ(capture.counters().disconnects, 0u) << "absent from the start";
+
+  camera.plugged_in = true;
+  wait_for([&] { return capture.counters().captured >= 5; }, 30s);
+  EXPECT_TRUE(capture.delivering());
+  EXPECT_EQ(capture.counters().disconnects, 0u);
+  EXPECT_TRUE(log.messages(spdlog::level::warn).empty());
+
+  camera.plugged_in = false;
+  wait_for([&] { return !capture.connected(); }, 10s);
+  capture.stop();
+  EXPECT_EQ(capture.counters().disconnects, 1u) << "unplugged after frames";
+  EXPECT_EQ(log.messages(spdlog::level::warn), std::vector<std::string>{"pluggable camera: disconnected; holding"});
 }
 
 /// A camera that was not there when the pipeline was built: it says the rate asked for, 60,

@@ -67,8 +67,9 @@ void Capture::run() {
         break;
       }
       case GrabStatus::kDisconnected:
-        // Logged once per outage; the source keeps trying to reopen by itself.
-        if (connected_.exchange(false)) {
+        // Logged once per outage; the source keeps trying to reopen by itself. A camera away
+        // before its first frame (not there at start) was never connected: not a disconnect.
+        if (connected_.exchange(false) && captured_.load(std::memory_order_relaxed) > 0) {
           disconnects_.fetch_add(1, std::memory_order_relaxed);
           spdlog::warn("{}: disconnected; {}", name_, when_lost_);
         }

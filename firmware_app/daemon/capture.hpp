@@ -34,7 +34,7 @@ struct CapturedFrame {
 struct CaptureCounters {
   std::uint64_t captured = 0;     // frames handed over
   std::uint64_t dropped = 0;      // frames replaced by a newer one before the consumer took them
-  std::uint64_t disconnects = 0;  // times the source went away
+  std::uint64_t disconnects = 0;  // times the source went away after delivering frames
   std::uint64_t corrupt = 0;      // frames the source could not decode
 };
 
@@ -58,7 +58,8 @@ class Capture {
   /// stays the consumer's until its next take().
   const CapturedFrame* take(std::chrono::nanoseconds timeout) { return frames_.take(timeout); }
 
-  /// No disconnect since the last frame (true from the start, until the source reports one),
+  /// No disconnect since the last frame (true from the start, until the source reports one:
+  /// a camera not there at start does with its first grab, though it is not counted as one),
   /// and a frame within kSilentAfter: a camera that stops sending without an error (a cable
   /// glitch, a stream that stalls) is not connected either.
   bool connected() const {

@@ -79,7 +79,7 @@ struct PipelineStats {
   std::uint64_t dropped = 0;                             // frames replaced by a newer one before processing
   std::uint64_t lost_track = 0;                          // times a tracked face was lost
   std::uint64_t warmed = 0;                              // frames whose landmark data was read into the cache before they came (warm_ahead)
-  std::uint64_t disconnects = 0;                         // times the source went away
+  std::uint64_t disconnects = 0;                         // times the source went away after delivering frames
   std::uint64_t corrupt = 0;                             // frames the source could not decode
   double processed_median_ms = 0, processed_p99_ms = 0;  // capture -> processed
   double output_median_ms = 0, output_p99_ms = 0;        // capture -> output thread
