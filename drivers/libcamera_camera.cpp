@@ -351,17 +351,28 @@ class Session {
   bool gone_ = false;                           // libcamera reported the camera unplugged
 };
 
+/// No camera by the configured id, or none at all: one may still appear (a CSI camera whose ISP
+/// is enumerated after the daemon started at boot).
+struct CameraAbsent : SourceError {
+  using SourceError::SourceError;
+};
+
 }  // namespace
 
 class LibcameraCamera::Impl {
  public:
-  explicit Impl(LibcameraOptions options) : options_(std::move(options)) {
-    const auto cameras = lease_.manager().cameras();
-    if (cameras.empty()) throw SourceError("libcamera: no cameras found");
-    if (options_.camera_id.empty()) options_.camera_id = cameras.front()->id();
-    description_ = "libcamera:" + options_.camera_id;
-    session_ = Session::open(find_camera(), options_);
-    frame_rate_ = session_->frame_rate();
+  explicit Impl(LibcameraOptions options)
+      : options_(std::move(options)),
+        description_("libcamera:" + (options_.camera_id.empty() ? "(first camera)" : options_.camera_id)),
+        frame_rate_(options_.frame_rate) {
+    try {
+      open();
+    } catch (const CameraAbsent& absent) {
+      if (!options_.wait_when_absent) throw;
+      // As after a disconnect: grab() opens the camera when it appears.
+      spdlog::warn("{}; waiting for it", absent.what());
+      next_reconnect_ = Clock::now() + reconnect_backoff_.failed();
+    }
   }
 
   GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) {
@@ -394,12 +405,25 @@ class LibcameraCamera::Impl {
   const std::string& describe() const { return description_; }
 
  private:
+  /// Opens a session on the configured camera. The first camera found for an empty id becomes
+  /// the id: a reconnect looks for that camera again.
+  void open() {
+    const auto cameras = lease_.manager().cameras();
+    if (cameras.empty()) throw CameraAbsent("libcamera: no cameras found");
+    if (options_.camera_id.empty()) {
+      options_.camera_id = cameras.front()->id();
+      description_ = "libcamera:" + options_.camera_id;
+    }
+    session_ = Session::open(find_camera(), options_);
+    frame_rate_ = session_->frame_rate();
+  }
+
   std::shared_ptr<libcamera::Camera> find_camera() {
     if (auto camera = lease_.manager().get(options_.camera_id)) return camera;
     std::string ids;
     for (const auto& camera : lease_.manager().cameras()) ids += (ids.empty() ? "" : ", ") + camera->id();
-    throw SourceError("libcamera: no camera \"" + options_.camera_id + "\" (cameras: " + (ids.empty() ? "none" : ids) +
-                      ")");
+    throw CameraAbsent("libcamera: no camera \"" + options_.camera_id + "\" (cameras: " + (ids.empty() ? "none" : ids) +
+                       ")");
   }
 
   GrabStatus disconnect() {
@@ -420,14 +444,14 @@ class LibcameraCamera::Impl {
       if (Clock::now() < next_reconnect_) return false;
     }
     try {
-      session_ = Session::open(find_camera(), options_);
+      open();
     } catch (const SourceError& error) {
       spdlog::debug("{}: reconnect failed: {}", description_, error.what());
       next_reconnect_ = Clock::now() + reconnect_backoff_.failed();
       return false;
     }
     reconnect_backoff_.succeeded();
-    spdlog::info("{}: camera reconnected", description_);
+    spdlog::info("{}: camera connected", description_);
     return true;
   }
 
@@ -448,7 +472,7 @@ class LibcameraCamera::Impl {
   ManagerLease lease_;
   LibcameraOptions options_;
   std::string description_;
-  double frame_rate_ = 0;
+  double frame_rate_;  // the requested rate until a session says what it applied
   std::unique_ptr<Session> session_;
   libcamera::Request* held_ = nullptr;  // the request whose buffer the caller's frame shows
 

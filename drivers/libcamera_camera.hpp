@@ -16,7 +16,10 @@
 //
 // Disconnects: when libcamera reports the camera gone, everything of it is released and
 // grab() returns kDisconnected; later grabs look for the same camera id again with
-// exponential back-off (100 ms up to 5 s), never waiting longer than their timeout.
+// exponential back-off (100 ms up to 5 s), never waiting longer than their timeout. A camera
+// not there at construction (none at all, or none by the configured id) is, with
+// wait_when_absent, waited for the same way: the daemon started at boot before the sensor and
+// its ISP were enumerated runs until they are.
 //
 // libcamera's API is not stable: this is written against 0.0.3 (Debian 12). The calls known
 // to differ in newer releases are confined to libcamera_camera.cpp, marked "libcamera API:":
@@ -42,22 +45,28 @@ struct LibcameraOptions {
   unsigned height = 0;
   double frame_rate = 0;  // frames per second; 0 keeps the camera's default
   int exposure_us = 0;    // 0: the camera's automatic exposure; else manual, this long ([camera.controls])
+  /// A camera not there (yet) is waited for, as after a disconnect (the daemon); false: it is
+  /// an error at once (`lipdrive calibrate` on the camera).
+  bool wait_when_absent = false;
 };
 
 class LibcameraCamera final : public FrameSource {
  public:
   /// Starts libcamera, acquires and configures the camera and starts streaming; throws
-  /// SourceError naming the camera and the reason ("libcamera: no cameras found", no such
-  /// camera, busy, no luma-first format, ...).
+  /// SourceError naming the camera and the reason (busy, no luma-first format, ...). A camera
+  /// that is not there ("libcamera: no cameras found", no camera by that id) throws too unless
+  /// options.wait_when_absent: then that is logged once ("...; waiting for it") and grab()
+  /// returns kDisconnected until the camera appears and opens.
   explicit LibcameraCamera(LibcameraOptions options);
   ~LibcameraCamera() override;
   LibcameraCamera(const LibcameraCamera&) = delete;
   LibcameraCamera& operator=(const LibcameraCamera&) = delete;
 
   GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override;
-  /// The requested rate when the camera accepted a frame-duration control, else 0.
+  /// The requested rate when the camera accepted a frame-duration control, else 0; the
+  /// requested rate until the camera has opened.
   double frame_rate() const override;
-  /// "libcamera:" and the camera id.
+  /// "libcamera:" and the camera id ("libcamera:(first camera)" for no id until one is found).
   std::string describe() const override;
 
  private:

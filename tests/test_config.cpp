@@ -404,6 +404,25 @@ TEST_F(ConfigTest, TheDaemonWaitsForACameraNotThereYet) {
   EXPECT_EQ(daemon.wait(std::chrono::seconds(10)), 0) << daemon.log();
 }
 
+#ifdef LIPDRIVE_HAVE_LIBCAMERA
+// The same for a CSI camera whose ISP is enumerated after the daemon started (this machine has
+// none): the daemon waits, calibrate on the camera stops with the reason.
+TEST_F(ConfigTest, TheDaemonWaitsForALibcameraCameraNotThereYetAndCalibrateDoesNot) {
+  write("type = \"libcamera\"", "[status]\nprint_interval_ms = 100\n");
+  test::DaemonProcess daemon(file_, dir_ / "daemon.log");
+  EXPECT_TRUE(daemon.wait_for_log("0.0 fps, latency n/a, drive fail-safe, not tracked, dropped 0, camera disconnected"))
+      << daemon.log();
+  EXPECT_TRUE(daemon.running()) << daemon.log();
+  EXPECT_THAT(daemon.log(), HasSubstr("libcamera: no cameras found; waiting for it"));
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(std::chrono::seconds(10)), 0) << daemon.log();
+  const test::CommandRun live = run_lipdrive(
+      fmt::format("calibrate --config {} --performer bob --out {}", file_.string(), (dir_ / "bob.toml").string()));
+  EXPECT_EQ(live.exit_code, 78) << live.output;
+  EXPECT_THAT(live.output, HasSubstr("key camera.type: libcamera: no cameras found"));
+}
+#endif
+
 TEST_F(ConfigTest, RunRefusesANegativeFrameCount) {
   write("");
   // Under `timeout`: a count that wraps round runs until stopped.

@@ -1,6 +1,8 @@
-// The libcamera source on a machine without cameras: construction fails cleanly and fast,
-// and libcamera's process-wide state (one CameraManager) is torn down and rebuilt each time.
+// The libcamera source on a machine without cameras: construction fails cleanly and fast, or
+// waits for a camera when asked to, and libcamera's process-wide state (one CameraManager) is
+// torn down and rebuilt each time.
 #include "drivers/libcamera_camera.hpp"
+#include "tests/captured_log.hpp"
 
 #include <gtest/gtest.h>
 
@@ -41,6 +43,30 @@ TEST(LibcameraCamera, NoCamerasIsACleanSourceErrorWhateverTheOptions) {
     ADD_FAILURE() << "found a camera: " << camera.describe();
   } catch (const SourceError& error) {
     EXPECT_EQ(std::string(error.what()), "libcamera: no cameras found");
+  }
+}
+
+// The daemon started at boot before the CSI camera and its ISP were enumerated: the camera is
+// away, as after an unplug, and every grab says so within its timeout while it is looked for.
+TEST(LibcameraCamera, ACameraNotThereIsWaitedForWhenAsked) {
+  for (const std::string id : {"", "/base/soc/i2c0mux/i2c@1/imx219@10"}) {
+    LibcameraOptions options;
+    options.camera_id = id;
+    options.frame_rate = 30;
+    options.wait_when_absent = true;
+    const testing::CapturedLog log;
+    LibcameraCamera camera(options);
+    EXPECT_EQ(camera.describe(), id.empty() ? "libcamera:(first camera)" : "libcamera:" + id);
+    EXPECT_DOUBLE_EQ(camera.frame_rate(), 30) << "the rate asked for until the camera opens";
+    Frame frame;
+    for (int attempt = 0; attempt < 4; ++attempt) {
+      const Clock::time_point start = Clock::now();
+      EXPECT_EQ(camera.grab(frame, std::chrono::milliseconds(200)), GrabStatus::kDisconnected) << attempt;
+      // Generous for sanitizer builds: the back-off never holds a grab past its timeout.
+      EXPECT_LT(Clock::now() - start, std::chrono::seconds(2)) << attempt;
+    }
+    EXPECT_EQ(log.messages(spdlog::level::warn),
+              std::vector<std::string>{"libcamera: no cameras found; waiting for it"});
   }
 }
 

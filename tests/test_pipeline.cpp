@@ -706,15 +706,6 @@ TEST_F(RunTest, FramesAndStats) {
   EXPECT_GE(processed, 50u);
 }
 
-#ifdef LIPDRIVE_HAVE_LIBCAMERA
-TEST_F(RunTest, LibcameraWithoutCamerasExitsWithExConfig) {
-  write_config("type = \"libcamera\"");
-  test::DaemonProcess daemon(config_, dir_ / "stderr.txt");
-  EXPECT_EQ(daemon.wait(30s), 78) << daemon.log();
-  EXPECT_THAT(daemon.log(), HasSubstr("key camera.type: libcamera: no cameras found"));
-}
-#endif
-
 TEST_F(RunTest, SigtermStopsWithinOneSecond) {
   write_config("real_time = true");
   test::DaemonProcess daemon(config_, dir_ / "stderr.txt");

@@ -213,7 +213,7 @@ void read_controls(Section controls, V4l2Controls& out) {
 /// What of a camera must be there when the file is read.
 struct CameraNeeds {
   bool recording = false;  // the clip or folder a simulated camera replays
-  bool device = false;     // a V4L2 camera's device node
+  bool device = false;     // a V4L2 camera's device node; a libcamera camera, when it is opened
 };
 
 void read_camera(Section camera, Config::Camera& config_camera, CameraNeeds needs) {
@@ -248,6 +248,7 @@ void read_camera(Section camera, Config::Camera& config_camera, CameraNeeds need
   v4l2.frame_rate = camera.integer("fps", 60, 1, 240);
   read_controls(camera.table("controls"), v4l2.controls);
   config_camera.libcamera_id = camera.string("camera_id", "");
+  config_camera.wait_when_absent = !needs.device;
   const int rotation = camera.integer("rotation", 0, 0, 270);
   if (const auto turn = rotation_from_degrees(rotation))
     config_camera.rotation = *turn;
@@ -669,7 +670,8 @@ Config load_config(const fs::path& file, ConfigUse use) {
   read_tracker(top.table("tracker"), config);
   // Recordings stand in for the cameras: a file written for the rig loads anywhere. The daemon
   // waits for a camera that is not there yet (a USB camera enumerated after it started at
-  // boot: drivers/v4l2_camera.hpp); calibrate on the camera needs it now.
+  // boot, a CSI camera whose ISP is: drivers/v4l2_camera.hpp, drivers/libcamera_camera.hpp);
+  // calibrate on the camera needs it now.
   const CameraNeeds needs{.recording = use == ConfigUse::kDaemon || use == ConfigUse::kCalibrateCamera,
                           .device = use == ConfigUse::kCalibrateCamera};
   read_camera(top.table("camera"), config.camera, needs);

@@ -137,6 +137,9 @@ struct Config {
     SimulatedCameraOptions sim;  // input resolved: never empty
     V4l2Options v4l2;
     std::string libcamera_id;  // "" = the first camera; size and rate as for v4l2
+    /// A libcamera camera not there when it is opened is waited for (ConfigUse::kDaemon), else an
+    /// error (kCalibrateCamera), as a V4L2 camera's device node is required when the file loads.
+    bool wait_when_absent = true;
     Rotation rotation = Rotation::k0;  // the clockwise turn that stands its frames upright
   } camera;
 

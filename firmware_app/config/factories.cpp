@@ -30,9 +30,9 @@ std::unique_ptr<FrameSource> open_camera(const Config::Camera& camera, const Con
   if (camera.type == Config::Camera::Type::kLibcamera) {
     const V4l2Options& format = camera.v4l2;
     try {
-      return std::make_unique<LibcameraCamera>(
-          LibcameraOptions{camera.libcamera_id, format.width, format.height, format.frame_rate,
-                           format.controls.exposure_us});
+      return std::make_unique<LibcameraCamera>(LibcameraOptions{camera.libcamera_id, format.width, format.height,
+                                                                format.frame_rate, format.controls.exposure_us,
+                                                                camera.wait_when_absent});
     } catch (const SourceError& e) {
       throw ConfigError(fmt::format("{}: key {}.type: {}", config.file.string(), table, e.what()));
     }

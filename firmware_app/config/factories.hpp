@@ -17,9 +17,10 @@
 
 namespace lipdrive {
 
-/// The configured camera. A recording that cannot be opened throws ConfigError. `clock` (not
-/// owned, outlives the camera): the simulated camera's replay timeline, shared with the
-/// simulated microphone of [voice] input = "sim".
+/// The configured camera. A recording or a libcamera camera that cannot be opened throws
+/// ConfigError (a libcamera camera not there yet only where it is not waited for,
+/// Config::Camera::wait_when_absent). `clock` (not owned, outlives the camera): the simulated
+/// camera's replay timeline, shared with the simulated microphone of [voice] input = "sim".
 std::unique_ptr<FrameSource> make_source(const Config& config, ReplayClock* clock = nullptr);
 
 /// The [voice] room, or nullptr when it is not enabled or cannot run: a voice model that
