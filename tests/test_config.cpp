@@ -17,6 +17,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -240,6 +241,42 @@ TEST_F(ConfigTest, SyntaxErrorsNameTheLine) {
 
 test::CommandRun run_lipdrive(const std::string& args) {
   return test::run_command(std::string(test::kLipdrive) + " " + args);
+}
+
+// A device, a folder or a FIFO where a file belongs: the daemon would read /dev/zero as a model
+// without end, or block its start on a FIFO given as the clip until something wrote to it.
+TEST_F(ConfigTest, PathsMustNameWhatTheKeyReads) {
+  const fs::path fifo = dir_ / "clip.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  write_text(fmt::format("[model]\nfile = \"/dev/zero\"\n[camera]\ninput = \"{}\"\n", kClip.string()));
+  EXPECT_EQ(error(), file_.string() + ": key model.file: /dev/zero is a character device, not a model file");
+  write_text(fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n", dir_.string(), kClip.string()));
+  EXPECT_EQ(error(),
+            fmt::format("{}: key model.file: {} is a folder, not a model file", file_.string(), dir_.string()));
+  write("", "[tracker]\npredictor = \"/dev/zero\"");
+  EXPECT_THAT(error(), HasSubstr("key tracker.predictor: /dev/zero is a character device, not a predictor file"));
+  write_text(fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n", kModel.string(), fifo.string()));
+  EXPECT_THAT(error(), HasSubstr(fmt::format("key camera.input: {} is a FIFO, not a file or folder", fifo.string())));
+  write("", "[recording]\ndir = \"/dev/zero\"");
+  EXPECT_THAT(error(), HasSubstr("key recording.dir: /dev/zero is a character device, not a folder"));
+  // A folder of images replays; a folder of takes not made yet is made by the first take.
+  write_text(fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n[recording]\ndir = \"{}\"\n",
+                         kModel.string(), dir_.string(), (dir_ / "takes").string()));
+  EXPECT_NO_THROW(load_config(file_));
+  // A camera's device must be one: calibrate on the camera opens it.
+  write("type = \"v4l2\"\ndevice = \"/dev/null\"");
+  EXPECT_NO_THROW(load_config(file_, ConfigUse::kCalibrateCamera));
+  write(fmt::format("type = \"v4l2\"\ndevice = \"{}\"", kClip.string()));
+  try {
+    load_config(file_, ConfigUse::kCalibrateCamera);
+    ADD_FAILURE() << "a file is not a camera";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(fmt::format("key camera.device: {} is a file, not a device", kClip.string())));
+  }
+  // The daemon refuses it at once instead of hanging on the FIFO (which no signal would end).
+  write_text(fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n", kModel.string(), fifo.string()));
+  const test::CommandRun run = run_lipdrive("run --frames 1 --config " + file_.string());
+  EXPECT_EQ(run.exit_code, 78) << run.output;
 }
 
 constexpr const char* kJawChannel =

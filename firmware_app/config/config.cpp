@@ -154,10 +154,34 @@ class Section {
   std::vector<std::string> read_;
 };
 
-/// `path` when it exists; `kind` names what it should be in the message.
-fs::path existing(Section& section, std::string_view key, const fs::path& path, std::string_view kind) {
+/// What a path in the file must name: a device node is not a model, and a FIFO given as a clip
+/// would block the daemon's start until something writes to it.
+enum class PathIs { kFile, kFileOrFolder, kDevice };
+
+/// What `status` is, for a message: "a folder", "a FIFO", ...
+std::string_view type_name(const fs::file_status& status) {
+  switch (status.type()) {
+    case fs::file_type::regular: return "a file";
+    case fs::file_type::directory: return "a folder";
+    case fs::file_type::character: return "a character device";
+    case fs::file_type::block: return "a block device";
+    case fs::file_type::fifo: return "a FIFO";
+    case fs::file_type::socket: return "a socket";
+    default: return "neither a file nor a folder";
+  }
+}
+
+/// `path` when it exists and is what `is` asks (symbolic links followed); `kind` names what it
+/// should be in the message.
+fs::path existing(Section& section, std::string_view key, const fs::path& path, std::string_view kind,
+                  PathIs is = PathIs::kFile) {
   std::error_code ec;
-  if (!fs::exists(path, ec)) section.fail(key, fmt::format("no such {}: {}", kind, path.string()));
+  const fs::file_status status = fs::status(path, ec);
+  if (!fs::exists(status)) section.fail(key, fmt::format("no such {}: {}", kind, path.string()));
+  const bool fits = is == PathIs::kDevice
+                        ? fs::is_character_file(status)
+                        : fs::is_regular_file(status) || (is == PathIs::kFileOrFolder && fs::is_directory(status));
+  if (!fits) section.fail(key, fmt::format("{} is {}, not a {}", path.string(), type_name(status), kind));
   return path;
 }
 
@@ -257,9 +281,9 @@ void read_camera(Section camera, Config::Camera& config_camera, CameraNeeds need
   camera.reject_unknown_keys();
 
   if (needs.recording && config_camera.type == Config::Camera::Type::kSim)
-    existing(camera, "input", sim.input, "file or folder");
+    existing(camera, "input", sim.input, "file or folder", PathIs::kFileOrFolder);
   if (needs.device && config_camera.type == Config::Camera::Type::kV4l2)
-    existing(camera, "device", v4l2_device_path(v4l2.device), "device");
+    existing(camera, "device", v4l2_device_path(v4l2.device), "device", PathIs::kDevice);
 }
 
 /// [side_camera]: the keys of [camera], plus whether it is used and where the face looks.
@@ -278,6 +302,10 @@ void read_recording(Section recording, Config& config) {
   r.dir = recording.string("dir", r.dir.string());
   // An empty path is the working directory, which a service does not choose.
   if (r.dir.empty()) recording.fail("dir", "must name the folder takes are written to");
+  // Made when the first take starts, if it is not there yet.
+  std::error_code ec;
+  if (const fs::file_status status = fs::status(r.dir, ec); fs::exists(status) && !fs::is_directory(status))
+    recording.fail("dir", fmt::format("{} is {}, not a folder", r.dir.string(), type_name(status)));
   r.start = recording.boolean("start", r.start);
   r.flush_interval_ms = recording.integer("flush_interval_ms", r.flush_interval_ms, 10, 60'000);
   recording.reject_unknown_keys();
