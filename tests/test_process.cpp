@@ -617,6 +617,36 @@ TEST_F(ProcessTest, AMissingSideRecordingOrVoiceModelLeavesTheOutputAsItWas) {
   }
 }
 
+// An input that gives no row at all (a recording without frames, a folder whose pictures
+// cannot be read) leaves an earlier table as it was: the rows go to a file beside it that
+// replaces it once they are all written.
+TEST_F(ProcessTest, AnInputThatGivesNoRowLeavesTheOutputAsItWas) {
+  const fs::path source = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(source);
+  const fs::path empty = dir_ / "empty.avi", junk = dir_ / "junk";
+  {
+    cv::VideoWriter writer(empty.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, cv::Size(64, 48), false);
+    ASSERT_TRUE(writer.isOpened());
+  }
+  fs::create_directories(junk);
+  std::ofstream(junk / "a.png") << "not a picture";
+  const fs::path out = dir_ / "keep.csv";
+  constexpr const char* kEarlier = "an earlier table\n";
+  for (const fs::path& input : {empty, junk}) {
+    std::ofstream(out) << kEarlier;
+    const ProcessRun run = run_process(fmt::format("{} --out {}", input.string(), out.string()), dir_);
+    EXPECT_EQ(run.exit_code, 65) << run.stderr_text;
+    std::ifstream in(out);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()), kEarlier) << input;
+  }
+  // A finished run replaces it, and leaves no temporary file beside it.
+  const ProcessRun run = run_process(fmt::format("{} --out {}", source.string(), out.string()), dir_);
+  EXPECT_EQ(run.exit_code, 0) << run.stderr_text;
+  EXPECT_EQ(read_csv_table(out).rows.size(), frame_count(source));
+  for (const auto& entry : fs::directory_iterator(dir_))
+    EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
+}
+
 TEST_F(ProcessTest, VideoWithoutAFaceWritesUntrackedRowsAndFails) {
   const fs::path noise = dir_ / "noise.avi";
   {

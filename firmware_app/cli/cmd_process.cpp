@@ -304,15 +304,11 @@ void run_process(const ProcessOptions& options) {
   std::optional<VoiceColumns> voice;
   if (!options.voice.empty()) voice.emplace(options.voice, options.input);
 
-  // Opened once every input has been read and checked: a mistake in one leaves the file as it was.
-  std::ofstream file;
-  if (!options.out.empty()) {
-    std::error_code ec;
-    if (options.out.has_parent_path()) std::filesystem::create_directories(options.out.parent_path(), ec);
-    file.open(options.out, std::ios::binary | std::ios::trunc);
-    if (!file) throw CommandError(fmt::format("{}: cannot open for writing", options.out.string()));
-  }
-  std::ostream& out = options.out.empty() ? std::cout : file;
+  // The rows replace the file only once written: a mistake in an input, an error before the
+  // first row or a process stopped halfway leaves the file as it was.
+  std::optional<FileReplacement> file;
+  if (!options.out.empty()) file.emplace(options.out);
+  std::ostream& out = file ? file->stream() : std::cout;
   if (timecode)
     out << "# timecode_start " << format_frame(timecode->first, timecode->second).view() << " at "
         << rate_name(timecode->second) << " fps\n";
@@ -396,8 +392,14 @@ void run_process(const ProcessOptions& options) {
   }
   const double seconds = ms_since(start) / 1000;
   if (progress) fmt::print(stderr, "\r{} frames, {} tracked{:20}\n", rows, tracked_rows, "");
-  out.flush();
-  if (!out) throw CommandError(fmt::format("{}: write failed", options.out.empty() ? "stdout" : options.out.string()));
+  // The frames that were processed are kept even where others could not be read (the errors
+  // below); with none, the file stays as it was.
+  if (!file) {
+    out.flush();
+    if (!out) throw CommandError("stdout: write failed");
+  } else if (rows > 0) {
+    file->commit();
+  }
   if (options.stats) print_stats(times, rows, seconds);
 
   const std::string input = options.input.string();

@@ -8,7 +8,9 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include <cerrno>
 #include <charconv>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -18,20 +20,6 @@
 
 namespace lipdrive {
 namespace {
-
-// Opens an output file, creating its directory, so "--out new/dir/file" just works.
-std::ofstream open_for_writing(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw CommandError(fmt::format("{}: cannot open for writing", path.string()));
-  return out;
-}
-
-void finish_writing(std::ofstream& out, const std::filesystem::path& path) {
-  out.flush();
-  if (!out) throw CommandError(fmt::format("{}: write failed (disk full?)", path.string()));
-}
 
 std::vector<std::uint8_t> read_bytes(const std::filesystem::path& path) {
   std::error_code ec;
@@ -66,21 +54,39 @@ void save_model_file(const std::filesystem::path& path, const MorphableModel& mo
   replace_file(path, serialize_model(model));
 }
 
-void replace_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
-  // The pid keeps two concurrent writers of the same file from sharing a temp file.
-  auto temp = path;
-  temp += fmt::format(".tmp{}", ::getpid());
-  {
-    auto out = open_for_writing(temp);
-    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    finish_writing(out, temp);
-  }
+FileReplacement::FileReplacement(std::filesystem::path path) : path_(std::move(path)), temp_(path_) {
+  // The pid keeps two concurrent writers of the same file from sharing a temporary file.
+  temp_ += fmt::format(".tmp{}", ::getpid());
+  // "--out new/dir/file" just works.
   std::error_code ec;
-  std::filesystem::rename(temp, path, ec);
-  if (ec) {
-    std::filesystem::remove(temp, ec);
-    throw CommandError(fmt::format("{}: cannot replace the file: {}", path.string(), ec.message()));
-  }
+  if (path_.has_parent_path()) std::filesystem::create_directories(path_.parent_path(), ec);
+  out_.open(temp_, std::ios::binary | std::ios::trunc);
+  if (!out_)
+    throw CommandError(fmt::format("{}: cannot write {} to replace it: {}", path_.string(), temp_.filename().string(),
+                                   std::strerror(errno)));
+}
+
+FileReplacement::~FileReplacement() {
+  if (committed_) return;
+  out_.close();
+  std::error_code ec;
+  std::filesystem::remove(temp_, ec);
+}
+
+void FileReplacement::commit() {
+  out_.flush();
+  if (!out_) throw CommandError(fmt::format("{}: write failed (disk full?)", temp_.string()));
+  out_.close();
+  std::error_code ec;
+  std::filesystem::rename(temp_, path_, ec);
+  if (ec) throw CommandError(fmt::format("{}: cannot replace the file: {}", path_.string(), ec.message()));
+  committed_ = true;
+}
+
+void replace_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {
+  FileReplacement file(path);
+  file.stream().write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  file.commit();
 }
 
 VoiceModel load_voice_model_file(const std::filesystem::path& path) {
@@ -135,12 +141,13 @@ Mesh read_obj(const std::filesystem::path& path) {
 }
 
 void write_obj(const std::filesystem::path& path, const Mesh& mesh) {
-  auto out = open_for_writing(path);
+  FileReplacement file(path);
+  std::ostream& out = file.stream();
   // fmt's "{}" prints the shortest decimal that parses back to the same float.
   for (Eigen::Index i = 0; i < mesh.vertices.cols(); ++i)
     out << fmt::format("v {} {} {}\n", mesh.vertices(0, i), mesh.vertices(1, i), mesh.vertices(2, i));
   for (const Triangle& t : mesh.triangles) out << fmt::format("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
-  finish_writing(out, path);
+  file.commit();
 }
 
 std::array<std::int32_t, kNumLandmarks> read_landmark_map(const std::filesystem::path& path) {
@@ -183,13 +190,14 @@ std::array<std::int32_t, kNumLandmarks> read_landmark_map(const std::filesystem:
 
 void write_landmark_map(const std::filesystem::path& path,
                         const std::array<std::int32_t, kNumLandmarks>& landmark_vertex) {
-  auto out = open_for_writing(path);
+  FileReplacement file(path);
+  std::ostream& out = file.stream();
   out << "# iBUG-68 landmark index -> 0-based vertex index in the pose meshes\n"
          "# (a missing index is unmapped)\n"
          "[landmarks]\n";
   for (int i = 0; i < kNumLandmarks; ++i)
     if (landmark_vertex[i] >= 0) out << fmt::format("{} = {}\n", i, landmark_vertex[i]);
-  finish_writing(out, path);
+  file.commit();
 }
 
 }  // namespace lipdrive

@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <span>
 
 namespace lipdrive {
@@ -20,8 +21,29 @@ MorphableModel load_model_file(const std::filesystem::path& path);
 /// Writes a .lpm model file through replace_file.
 void save_model_file(const std::filesystem::path& path, const MorphableModel& model);
 
-/// Writes `bytes` to `path` through a temporary file and a rename, so a reader never sees a
-/// half-written file. Throws CommandError naming the file.
+/// A file written in full before it takes the place of `path`: what is written goes to a
+/// temporary file beside it (its folder made if need be), and commit() renames that over
+/// `path`, so a reader never sees a half-written file. Destroyed without commit() (an error on
+/// the way), the temporary file is removed and `path` stays as it was. Throws CommandError
+/// naming the file.
+class FileReplacement {
+ public:
+  explicit FileReplacement(std::filesystem::path path);
+  ~FileReplacement();
+  FileReplacement(const FileReplacement&) = delete;
+  FileReplacement& operator=(const FileReplacement&) = delete;
+
+  std::ostream& stream() { return out_; }
+  /// Checks that everything was written (a full disk), then renames.
+  void commit();
+
+ private:
+  std::filesystem::path path_, temp_;
+  std::ofstream out_;
+  bool committed_ = false;
+};
+
+/// Writes `bytes` to `path` through a FileReplacement.
 void replace_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
 
 /// Reads a .lpv voice model file (core/voice_model_format.hpp). Throws CommandError:
