@@ -1,6 +1,7 @@
 #include "firmware_app/config/performer_profile.hpp"
 
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/model_files.hpp"
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -159,21 +160,12 @@ void save_profile(const fs::path& file, const std::string& performer, const Perf
     root.insert("indices", std::move(indices));
   }
   if (profile.identity) root.insert("identity", identity_table(*profile.identity));
-  std::error_code ec;
-  if (file.has_parent_path()) fs::create_directories(file.parent_path(), ec);
-  const fs::path temporary = file.string() + ".tmp";
-  {
-    std::ofstream out(temporary);
-    out << "# lipdrive performer profile: measures in units of d (docs/method.md 4); the daemon maps\n"
-           "# each [min, max] onto [0, 1]. [identity]: the performer's face in the model with that\n"
-           "# fingerprint (docs/method.md 3). Written by `lipdrive calibrate` and the calibrate command.\n"
-        << root << '\n';
-    out.flush();
-    if (!out) throw CommandError(fmt::format("{}: cannot write the profile", temporary.string()), kExitFailure);
-  }
-  fs::rename(temporary, file, ec);
-  if (ec)
-    throw CommandError(fmt::format("{}: cannot write the profile: {}", file.string(), ec.message()), kExitFailure);
+  FileReplacement out(file);
+  out.stream() << "# lipdrive performer profile: measures in units of d (docs/method.md 4); the daemon maps\n"
+                  "# each [min, max] onto [0, 1]. [identity]: the performer's face in the model with that\n"
+                  "# fingerprint (docs/method.md 3). Written by `lipdrive calibrate` and the calibrate command.\n"
+               << root << '\n';
+  out.commit();
 }
 
 }  // namespace lipdrive
