@@ -37,7 +37,9 @@ ffmpeg::Frame picture_for(const cv::Mat& image, AVPixelFormat format) {
   picture->format = format;
   picture->width = image.cols;
   picture->height = image.rows;
-  if (av_frame_get_buffer(picture.get(), 0) < 0) throw MediaError("out of memory");
+  if (const int e = av_frame_get_buffer(picture.get(), 0); e < 0) {
+    throw MediaError(fmt::format("cannot allocate a {}x{} picture: {}", image.cols, image.rows, error_text(e)));
+  }
   return picture;
 }
 

@@ -469,6 +469,29 @@ TEST_F(EvalPlotTest, PlotOfValuesThatDifferInTheirLastDigitIsAConstantLine) {
   EXPECT_EQ(line_colour_count(cv::imread(png.string(), cv::IMREAD_COLOR), 300), 1);
 }
 
+TEST_F(EvalPlotTest, PlotRefusesARepeatedColumnAndMorePanelsThanFitTheHeightLimit) {
+  const auto a = write("a.csv", sine_csv(0));
+  const auto png = (dir_ / "x.png").string();
+  const RunResult twice = run({"plot", a, "--columns", "width_2d,height_2d,width_2d", "--out", png});
+  EXPECT_EQ(twice.exit_code, 64);
+  EXPECT_THAT(twice.err, HasSubstr("--columns: width_2d is given twice"));
+
+  // 50 panels of 240 px make an image 13878 px high (it took 860 MB at 100 panels).
+  std::string header = "frame,time_s", row = "0,0";
+  std::string columns;
+  for (int i = 0; i < 50; ++i) {
+    header += fmt::format(",c{}", i);
+    row += ",1";
+    columns += fmt::format("{}c{}", i == 0 ? "" : ",", i);
+  }
+  const auto wide = write("wide.csv", header + "\n" + row + "\n");
+  const RunResult tall = run({"plot", wide, "--columns", columns, "--out", png, "--width", "10000"});
+  EXPECT_EQ(tall.exit_code, 64);
+  EXPECT_THAT(tall.err, HasSubstr("--columns: 50 panels of 240 px"));
+  EXPECT_THAT(tall.err, HasSubstr("(35 panels fit)"));
+  EXPECT_FALSE(fs::exists(png));
+}
+
 TEST_F(EvalPlotTest, PlotOfAMissingColumnFails) {
   const auto a = write("a.csv", sine_csv(0));
   const RunResult result = run({"plot", a, "--columns", "protrusion_side", "--out", (dir_ / "x.png").string()});

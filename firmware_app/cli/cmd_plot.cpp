@@ -17,6 +17,7 @@
 #include <memory>
 #include <numeric>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 namespace lipdrive {
@@ -60,6 +61,8 @@ constexpr double kTitleFontScale = 0.65;
 constexpr int kMarginLeft = 72, kMarginRight = 24, kMarginTop = 12, kMarginBottom = 50;
 constexpr int kTitleHeight = 32, kLegendRowHeight = 24, kPanelHeaderHeight = 22, kPanelGap = 14;
 constexpr int kDefaultPanelHeight = 240;
+// The largest width or height of the image, given or computed: 10000 x 10000 BGR is 300 MB.
+constexpr int kMaxImageSide = 10000;
 
 cv::Size text_size(const std::string& text, double scale) {
   int baseline = 0;
@@ -267,6 +270,14 @@ cv::Mat render_plot(const std::vector<Trajectories>& files, const PlotOptions& o
   const int height = options.height > 0 ? options.height
                                         : header + kMarginBottom + panels * (kDefaultPanelHeight + kPanelHeaderHeight) +
                                               (panels - 1) * kPanelGap;
+  if (height > kMaxImageSide) {
+    const int fit =
+        (kMaxImageSide - header - kMarginBottom + kPanelGap) / (kDefaultPanelHeight + kPanelHeaderHeight + kPanelGap);
+    throw CommandError(fmt::format("--columns: {} panels of {} px make an image {} px high, more than {} px ({} panels "
+                                   "fit); plot fewer columns or pass --height",
+                                   panels, kDefaultPanelHeight, height, kMaxImageSide, fit),
+                       kExitUsage);
+  }
   const int panel_height = (height - header - kMarginBottom - (panels - 1) * kPanelGap) / panels - kPanelHeaderHeight;
   const int panel_width = options.width - kMarginLeft - kMarginRight;
   if (panel_height < 40 || panel_width < 100) {
@@ -302,6 +313,11 @@ cv::Mat render_plot(const std::vector<Trajectories>& files, const PlotOptions& o
 }
 
 void run_plot(const PlotOptions& options) {
+  std::unordered_set<std::string> seen;
+  for (const auto& column : options.columns) {
+    if (!seen.insert(column).second)
+      throw CommandError(fmt::format("--columns: {} is given twice", column), kExitUsage);
+  }
   std::vector<CsvTable> tables;
   for (const auto& file : options.files) tables.push_back(read_csv_table(file));
   const std::string x_name = x_column(tables);
@@ -331,9 +347,9 @@ void add_plot_command(CLI::App& app) {
   plot->add_option("--out", options->out, "Image file to write (.png)")->required();
   plot->add_option("--width", options->width, "Image width in pixels")
       ->capture_default_str()
-      ->check(CLI::Range(300, 10000));
+      ->check(CLI::Range(300, kMaxImageSide));
   plot->add_option("--height", options->height, "Image height in pixels (default: 240 px per panel plus margins)")
-      ->check(CLI::Range(150, 10000));
+      ->check(CLI::Range(150, kMaxImageSide));
   plot->add_option("--title", options->title, "Title above the plot");
   plot->callback([options] { run_plot(*options); });
 }
