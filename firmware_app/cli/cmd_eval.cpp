@@ -125,8 +125,8 @@ double frames_per_second(const CsvTable& table) {
 
 /// Row indices (truth, pred) of the frames present in both tables, in truth order;
 /// restricted to `scored_frames` when given.
-std::vector<std::pair<std::size_t, std::size_t>> matched_rows(const CsvTable& truth, const CsvTable& pred,
-                                                              const std::optional<std::set<int>>& scored_frames) {
+std::vector<std::pair<std::size_t, std::size_t>> matched_rows(
+    const CsvTable& truth, const CsvTable& pred, const std::optional<std::vector<FrameRange>>& scored_frames) {
   std::map<int, std::size_t> pred_row_of_frame;
   const std::vector<int> pred_frames = frame_numbers(pred);
   for (std::size_t row = 0; row < pred_frames.size(); ++row) pred_row_of_frame[pred_frames[row]] = row;
@@ -135,7 +135,7 @@ std::vector<std::pair<std::size_t, std::size_t>> matched_rows(const CsvTable& tr
   const std::vector<int> truth_frames = frame_numbers(truth);
   for (std::size_t row = 0; row < truth_frames.size(); ++row) {
     const int frame = truth_frames[row];
-    if (scored_frames && !scored_frames->contains(frame)) continue;
+    if (scored_frames && !contains(*scored_frames, frame)) continue;
     if (const auto it = pred_row_of_frame.find(frame); it != pred_row_of_frame.end()) {
       pairs.emplace_back(row, it->second);
     }
@@ -304,10 +304,10 @@ void run_eval(const EvalOptions& options) {
     const CsvTable truth = read_csv_table(options.truth_path);
     if (columns.empty()) columns = default_columns(truth, pred);
     origin = std::min(origin, first_frame(truth));
-    std::optional<std::set<int>> scored_frames;
+    std::optional<std::vector<FrameRange>> scored_frames;
     if (!align.empty()) {
-      scored_frames.emplace();
-      for (int frame : speech_frames(align, rate)) scored_frames->insert(frame + origin);
+      scored_frames = speech_frames(align, rate);
+      for (FrameRange& range : *scored_frames) range.first += origin, range.last += origin;
     }
     const auto rows = matched_rows(truth, pred, scored_frames);
     if (rows.empty()) {

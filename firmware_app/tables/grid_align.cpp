@@ -8,6 +8,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 namespace lipdrive {
@@ -70,14 +71,27 @@ FrameRange frame_range(const AlignedWord& word, double frames_per_second) {
   return {frame_at(word.start), frame_at(word.end - 1)};
 }
 
-std::set<int> speech_frames(std::span<const AlignedWord> words, double frames_per_second) {
-  std::set<int> frames;
+std::vector<FrameRange> speech_frames(std::span<const AlignedWord> words, double frames_per_second) {
+  std::vector<FrameRange> ranges;
   for (const AlignedWord& word : words) {
-    if (is_silence(word)) continue;
-    const FrameRange range = frame_range(word, frames_per_second);
-    for (int frame = range.first; frame <= range.last; ++frame) frames.insert(frame);
+    if (!is_silence(word)) ranges.push_back(frame_range(word, frames_per_second));
   }
-  return frames;
+  std::sort(ranges.begin(), ranges.end(), [](const FrameRange& a, const FrameRange& b) { return a.first < b.first; });
+  std::vector<FrameRange> merged;
+  for (const FrameRange& range : ranges) {
+    if (!merged.empty() && range.first - 1 <= merged.back().last) {
+      merged.back().last = std::max(merged.back().last, range.last);
+    } else {
+      merged.push_back(range);
+    }
+  }
+  return merged;
+}
+
+bool contains(std::span<const FrameRange> ranges, int frame) {
+  const auto after = std::upper_bound(ranges.begin(), ranges.end(), frame,
+                                      [](int f, const FrameRange& range) { return f < range.first; });
+  return after != ranges.begin() && std::prev(after)->last >= frame;
 }
 
 std::vector<WordFrames> word_frames(std::span<const AlignedWord> words, double frames_per_second) {

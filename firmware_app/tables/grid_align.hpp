@@ -7,7 +7,6 @@
 
 #include <filesystem>
 #include <optional>
-#include <set>
 #include <span>
 #include <string>
 #include <string_view>
@@ -42,8 +41,12 @@ bool is_silence(const AlignedWord& word);
 /// move ahead of the sound, and an overlap rule never drops a short word.
 FrameRange frame_range(const AlignedWord& word, double frames_per_second);
 
-/// Frames overlapping any non-silence word.
-std::set<int> speech_frames(std::span<const AlignedWord> words, double frames_per_second);
+/// Frames overlapping any non-silence word, as ranges in order that neither overlap nor touch:
+/// their cost is one per word, not one per frame.
+std::vector<FrameRange> speech_frames(std::span<const AlignedWord> words, double frames_per_second);
+
+/// Whether `frame` is in one of `ranges` (sorted, disjoint, as speech_frames gives them).
+bool contains(std::span<const FrameRange> ranges, int frame);
 
 /// The words as closure_metric (core/metrics.hpp) takes them; they refer to `words`' text.
 std::vector<WordFrames> word_frames(std::span<const AlignedWord> words, double frames_per_second);

@@ -12,7 +12,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <set>
 #include <string>
 
 namespace lipdrive {
@@ -82,9 +81,9 @@ VoiceRecording load_clip(const fs::path& clip, int sample_rate, FrameProcessor& 
   std::error_code ec;
   if (fs::exists(align, ec)) {
     const std::vector<AlignedWord> words = read_grid_align(align);
-    const std::set<int> speech = speech_frames(words, camera->frame_rate());
+    const std::vector<FrameRange> speech = speech_frames(words, camera->frame_rate());
     for (std::size_t i = 0; i < recording.targets.size(); ++i)
-      recording.targets[i].speech = speech.contains(frame_numbers[i]);
+      recording.targets[i].speech = contains(speech, frame_numbers[i]);
     recording.has_transcript = true;
   }
   return recording;
