@@ -396,6 +396,30 @@ TEST_F(EvalPlotTest, CsvReaderErrorsNameFileLineAndColumn) {
     EXPECT_THAT(e.what(), HasSubstr("wide"));
   }
   EXPECT_THROW(column_index(table, "height_2d"), CommandError);
+
+  const auto twice = write("twice.csv", "# take\nframe,width_2d,height_2d,width_2d\n0,1,2,3\n");
+  try {
+    read_csv_table(twice);
+    FAIL() << "a column named twice was accepted";
+  } catch (const CommandError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(twice.string() + ":2: duplicate column 'width_2d'"));
+    EXPECT_EQ(e.exit_code(), kExitDataError);
+  }
+}
+
+TEST_F(EvalPlotTest, EvalOfATableWithManyColumnsIsQuick) {
+  // Each column name was compared with every other: 100,000 columns took over a minute.
+  constexpr int kColumns = 100000;
+  std::string header = "frame", row = "0";
+  for (int i = 0; i < kColumns; ++i) {
+    header += fmt::format(",c{}", i);
+    row += ",1";
+  }
+  const auto wide = write("wide.csv", header + "\n" + row + "\n");
+  const RunResult result = run({"eval", "--truth", wide, "--pred", wide}, "timeout 10 ");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_THAT(result.out, HasSubstr("1 frames matched"));
+  EXPECT_THAT(result.out, HasSubstr(fmt::format("\nc{} ", kColumns - 1)));
 }
 
 TEST_F(EvalPlotTest, GridAlignmentOfSharedFixture) {

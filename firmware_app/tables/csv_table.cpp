@@ -4,7 +4,6 @@
 
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <charconv>
 #include <fstream>
 #include <limits>
@@ -73,7 +72,7 @@ CsvTable read_csv_table(const std::filesystem::path& path) {
     if (table.header.empty()) {
       table.header = std::move(*fields);
       for (std::size_t i = 0; i < table.header.size(); ++i) {
-        if (std::count(table.header.begin(), table.header.end(), table.header[i]) > 1) {
+        if (!table.column_of.emplace(table.header[i], i).second) {
           data_error(table, line_number, fmt::format("duplicate column '{}'", table.header[i]));
         }
       }
@@ -93,16 +92,14 @@ CsvTable read_csv_table(const std::filesystem::path& path) {
   return table;
 }
 
-bool has_column(const CsvTable& table, std::string_view name) {
-  return std::find(table.header.begin(), table.header.end(), name) != table.header.end();
-}
+bool has_column(const CsvTable& table, std::string_view name) { return table.column_of.contains(name); }
 
 std::size_t column_index(const CsvTable& table, std::string_view name) {
-  const auto it = std::find(table.header.begin(), table.header.end(), name);
-  if (it == table.header.end()) {
+  const auto it = table.column_of.find(name);
+  if (it == table.column_of.end()) {
     throw CommandError(fmt::format("{}: no column '{}'", table.path.string(), name), kExitDataError);
   }
-  return static_cast<std::size_t>(it - table.header.begin());
+  return it->second;
 }
 
 std::vector<double> numeric_column(const CsvTable& table, std::string_view name) {

@@ -6,17 +6,27 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 namespace lipdrive {
+
+/// Hashes a std::string and a std::string_view alike, so a column is looked up by a view.
+struct ColumnNameHash {
+  using is_transparent = void;
+  std::size_t operator()(std::string_view name) const { return std::hash<std::string_view>{}(name); }
+};
 
 struct CsvTable {
   std::filesystem::path path;                  // for error messages
   std::vector<std::string> header;             // column names in file order
   std::vector<std::vector<std::string>> rows;  // each has header.size() fields
   std::vector<int> line_numbers;               // 1-based file line of each row
+  // Each column name's index in `header`: a lookup costs the same however many columns there are.
+  std::unordered_map<std::string, std::size_t, ColumnNameHash, std::equal_to<>> column_of;
 };
 
 /// Reads a whole CSV file; blank lines, and lines starting with '#' before the header, are
