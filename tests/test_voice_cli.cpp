@@ -220,6 +220,17 @@ TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
   EXPECT_EQ(run.output.find("nan"), std::string::npos) << run.output;
 }
 
+TEST(VoiceCli, EvalRefusesMoreFoldsThanRecordings) {
+  // Each fold trained a model, holding none out past the third (--folds 100 on 3 takes: 33 s).
+  const test::TempDir dir;
+  const fs::path a = write_take(dir.path(), "a", 1), b = write_take(dir.path(), "b", 2),
+                 c = write_take(dir.path(), "c", 3);
+  const test::CommandRun run = test::run_command(
+      lipdrive(fmt::format("voice eval --train {} {} {} --folds 4", a.string(), b.string(), c.string())));
+  EXPECT_EQ(run.exit_code, kExitUsage) << run.output;
+  EXPECT_NE(run.output.find("--folds: 4 exceeds the 3 recordings of --train"), std::string::npos) << run.output;
+}
+
 TEST(VoiceCli, TrainEvalAndProcessOnGridClips) {
   const fs::path grid = test::shared_fixtures() / "grid";
   LIPDRIVE_SKIP_WITHOUT_SHARED(grid / "bbaf2n.mpg");

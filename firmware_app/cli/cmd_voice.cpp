@@ -249,6 +249,10 @@ void run_eval(const EvalCommand& c) {
                                "recordings to evaluate the --voice model on (--folds cross-validates --train)");
   if (c.folds == 0 && c.test.empty())
     throw CLI::ValidationError("--test", "recordings to evaluate on (or --folds K to cross-validate --train)");
+  // A fold past the recordings holds none out: it would train a model for nothing.
+  if (!c.train.empty() && static_cast<std::size_t>(c.folds) > c.train.size())
+    throw CLI::ValidationError("--folds", fmt::format("{} exceeds the {} recordings of --train (one held out per fold)",
+                                                      c.folds, c.train.size()));
   nlohmann::json report;
   if (!c.voice.empty()) {
     const VoiceModel model = load_voice_model_file(c.voice);
