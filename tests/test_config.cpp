@@ -481,6 +481,21 @@ TEST_F(ConfigTest, CalibrateWritesTheProfileTheConfigurationNames) {
   EXPECT_EQ(load_config(file_).performer.name, "alice") << "the profile it names now exists";
 }
 
+TEST_F(ConfigTest, CalibrateRefusesAPerformerNameThatIsNotAPlainFileName) {
+  // It was exit 1 (the same name in [performer] name is 78); with --out it was not checked at all.
+  write("", fmt::format("[performer]\nprofiles_dir = \"{}\"", dir_.string()));
+  for (const std::string& out : {std::string(), " --out " + (dir_ / "x.toml").string()}) {
+    for (const char* name : {"../../x", "''", ".hidden"}) {
+      const test::CommandRun run = run_lipdrive(
+          fmt::format("calibrate --config {} --performer {} --input {}{}", file_.string(), name, kClip.string(), out));
+      EXPECT_EQ(run.exit_code, 64) << name << out << ": " << run.output;
+      EXPECT_THAT(run.output, HasSubstr("--performer: performer name"));
+      EXPECT_THAT(run.output, HasSubstr("must be letters, digits, '-', '_' or '.', not starting with '.'"));
+    }
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "x.toml"));
+}
+
 TEST_F(ConfigTest, CalibrateOnTheConfiguredSimulatedCameraPlaysItOnce) {
   // The daemon loops the replayed clip; calibrating on it must end at the clip's end (the
   // timeout fails the test instead of hanging it).

@@ -26,6 +26,8 @@
 #include <algorithm>
 #include <memory>
 #include <optional>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace lipdrive {
@@ -200,7 +202,19 @@ void add_calibrate_command(CLI::App& app) {
   auto options = std::make_shared<CalibrateOptions>();
   CLI::App* cmd = app.add_subcommand("calibrate", "A performer's profile from their neutral face and range of motion");
   cmd->add_option("--config", options->config, "configuration file: model, tracker, camera, [performer]")->required();
-  cmd->add_option("--performer", options->performer, "the performer's name (the profile file's name)")->required();
+  // The name is checked here, with --out too (it is written into the profile): a bad one is a command-line error.
+  cmd->add_option("--performer", options->performer, "the performer's name (the profile file's name)")
+      ->required()
+      ->check(CLI::Validator(
+          [](const std::string& name) {
+            try {
+              profile_path({}, name);
+              return std::string();
+            } catch (const std::invalid_argument& e) {
+              return std::string(e.what());
+            }
+          },
+          "NAME"));
   cmd->add_option("--input", options->input, "a recording instead of the configured camera");
   cmd->add_option("--out", options->out, "profile file (default: <profiles_dir>/<performer>.toml)");
   cmd->add_option("--neutral-frames", options->neutral_frames, "tracked frames of the neutral capture")

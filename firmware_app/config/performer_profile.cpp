@@ -99,8 +99,8 @@ fs::path profile_path(const fs::path& dir, const std::string& performer) {
     return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
   });
   if (!plain)
-    throw std::invalid_argument(
-        fmt::format("performer name \"{}\" must be letters, digits, '-', '_' or '.'", performer));
+    throw std::invalid_argument(fmt::format(
+        "performer name \"{}\" must be letters, digits, '-', '_' or '.', not starting with '.'", performer));
   return dir / (performer + ".toml");
 }
 
