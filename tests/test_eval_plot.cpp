@@ -407,6 +407,18 @@ TEST_F(EvalPlotTest, CsvReaderErrorsNameFileLineAndColumn) {
   }
 }
 
+TEST_F(EvalPlotTest, EvalRefusesAnInfiniteValueNamingFileLineAndColumn) {
+  // It was read as a value: "rmse_scaled -nan" and "n 2" against "3 frames matched", without a word.
+  for (const char* value : {"inf", "-inf"}) {
+    const auto pred = write("pred.csv", fmt::format("frame,time_s,width_2d\n0,0,1\n1,0.04,{}\n2,0.08,3\n", value));
+    const auto truth = write("truth.csv", "frame,time_s,width_2d\n0,0,1\n1,0.04,2\n2,0.08,3\n");
+    const RunResult result = run({"eval", "--truth", truth, "--pred", pred});
+    EXPECT_EQ(result.exit_code, 65) << value;
+    EXPECT_THAT(result.err,
+                HasSubstr(fmt::format("{}:3: column 'width_2d': '{}' is not a finite number", pred.string(), value)));
+  }
+}
+
 TEST_F(EvalPlotTest, EvalOfATableWithManyColumnsIsQuick) {
   // Each column name was compared with every other: 100,000 columns took over a minute.
   constexpr int kColumns = 100000;

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <charconv>
+#include <cmath>
 #include <fstream>
 #include <limits>
 #include <optional>
@@ -116,6 +117,10 @@ std::vector<double> numeric_column(const CsvTable& table, std::string_view name)
     const auto [end, error] = std::from_chars(field.data(), field.data() + field.size(), value);
     if (error != std::errc{} || end != field.data() + field.size()) {
       data_error(table, table.line_numbers[row], fmt::format("column '{}': '{}' is not a number", name, field));
+    }
+    // No measure is infinite; a missing or untracked value is an empty field.
+    if (std::isinf(value)) {
+      data_error(table, table.line_numbers[row], fmt::format("column '{}': '{}' is not a finite number", name, field));
     }
     values.push_back(value);
   }

@@ -42,7 +42,7 @@ std::size_t column_index(const CsvTable& table, std::string_view name);
 
 /// A column as numbers, one per row: an empty field (e.g. a measure on an untracked
 /// frame) is NaN. Throws CommandError naming file, line and column for a field that
-/// is not a number, or when the column is missing.
+/// is not a number or is infinite, or when the column is missing.
 std::vector<double> numeric_column(const CsvTable& table, std::string_view name);
 
 }  // namespace lipdrive
