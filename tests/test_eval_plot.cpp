@@ -183,15 +183,18 @@ TEST_F(EvalPlotTest, SpeechFramesAreTheWordsMergedIntoRanges) {
 }
 
 TEST_F(EvalPlotTest, EvalWithAlignmentOfLongWordsAtAHighFrameRateIsQuick) {
-  // Two rows 1 ms apart: 1000 frames/s, so each hour-long word spans 3.6 million frames. Every
-  // frame of every word was enumerated (200 words: 55 s, 390 MB).
-  const auto fast = write("fast.csv", "frame,time_s,width_2d\n0,0,1\n1,0.001,2\n");
+  // Rows 1 ms apart: 1000 frames/s, and an hour of words, 200 of 18 s each: 3.6 million frames,
+  // the last row at the end. Every frame of every word was enumerated into a set (200
+  // overlapping hour-long words: 55 s, 390 MB; words must now follow one another).
+  const auto fast = write("fast.csv", "frame,time_s,width_2d\n0,0,1\n1,0.001,2\n3599999,3599.999,3\n");
   std::string words;
-  for (int i = 0; i < 200; ++i) words += "0 90000000 bin\n";
+  for (long i = 0; i < 200; ++i) words += fmt::format("{} {} bin\n", i * 450'000, (i + 1) * 450'000);
   const auto align = write("long.align", words);
   const RunResult result = run({"eval", "--truth", fast, "--pred", fast, "--align", align, "--json"}, "timeout 10 ");
   ASSERT_EQ(result.exit_code, 0) << result.err;
-  EXPECT_EQ(nlohmann::json::parse(result.out).at("frames_matched"), 2);
+  const auto report = nlohmann::json::parse(result.out);
+  EXPECT_EQ(report.at("frames_matched"), 3);
+  EXPECT_EQ(report.at("closure").at(0).at("bilabial_words"), 200);
 }
 
 TEST_F(EvalPlotTest, EvalWithAlignmentAloneReportsTheClosureMetric) {
@@ -458,7 +461,9 @@ TEST_F(EvalPlotTest, GridAlignmentOfSharedFixture) {
 TEST_F(EvalPlotTest, MalformedAlignLineNamesFileAndLine) {
   // The last: a word 2.4 million frames long, which made eval --align enumerate them all
   // (found by fuzz_align).
-  for (const char* bad_line : {"100 abc bin", "2000 1000 bin", "100 200", "100 200 bin extra", "070 2375050070 23"}) {
+  // And a word that starts before the one above ends.
+  for (const char* bad_line :
+       {"100 abc bin", "2000 1000 bin", "100 200", "100 200 bin extra", "070 2375050070 23", "50 200 bin"}) {
     const auto path = write("bad.align", std::string("0 100 sil\n") + bad_line + "\n");
     try {
       read_grid_align(path);

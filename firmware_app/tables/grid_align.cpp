@@ -55,6 +55,14 @@ std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path) {
                                      path.string(), line_number, kMaxAlignTime, line),
                          kExitDataError);
     }
+    // A transcript is one word after another: a word that starts before the last one ended
+    // would be counted twice, and many of them would cost the closure metric their frames each.
+    if (!words.empty() && word->start < words.back().end) {
+      throw CommandError(fmt::format("{}:{}: '{}' starts at {}, before the word on the line above ends ({}): the "
+                                     "words must follow one another",
+                                     path.string(), line_number, line, word->start, words.back().end),
+                         kExitDataError);
+    }
     words.push_back(std::move(*word));
   }
   return words;
@@ -76,8 +84,7 @@ std::vector<FrameRange> speech_frames(std::span<const AlignedWord> words, double
   for (const AlignedWord& word : words) {
     if (!is_silence(word)) ranges.push_back(frame_range(word, frames_per_second));
   }
-  std::sort(ranges.begin(), ranges.end(), [](const FrameRange& a, const FrameRange& b) { return a.first < b.first; });
-  std::vector<FrameRange> merged;
+  std::vector<FrameRange> merged;  // the words follow one another (read_grid_align): already in order
   for (const FrameRange& range : ranges) {
     if (!merged.empty() && range.first - 1 <= merged.back().last) {
       merged.back().last = std::max(merged.back().last, range.last);

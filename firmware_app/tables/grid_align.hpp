@@ -31,7 +31,8 @@ struct FrameRange {
 
 /// Reads a .align file. Throws CommandError: kExitNoInput when it cannot be opened,
 /// kExitDataError naming file and line for a malformed line (not three fields,
-/// a time that is not a non-negative integer, end not after start).
+/// a time that is not a non-negative integer, end not after start, a start before the end of
+/// the word above).
 std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path);
 
 bool is_silence(const AlignedWord& word);
