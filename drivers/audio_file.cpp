@@ -101,6 +101,9 @@ class TrackDecoder {
   /// channels are averaged in convert()), whose output starts where the samples so far end.
   void open_resampler(const AVChannelLayout& layout, AVSampleFormat format, int sample_rate) {
     if (layout.nb_channels < 1) fail("the audio track has no channels");
+    if (sample_rate < kMinAudioSampleRate)
+      fail(fmt::format("sound at {} Hz; at least {} Hz (the lowest speech is recorded at)", sample_rate,
+                       kMinAudioSampleRate));
     if (const int e = av_channel_layout_copy(&in_layout_.layout, &layout); e < 0)
       fail(fmt::format("cannot resample: {}", error_text(e)));
     SwrContext* resampler = nullptr;
@@ -196,7 +199,7 @@ class TrackDecoder {
 }  // namespace
 
 DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate) {
-  if (sample_rate < 8000 || sample_rate > 192'000)
+  if (sample_rate < kMinAudioSampleRate || sample_rate > 192'000)
     throw AudioSourceError(fmt::format("{}: sample rate {} Hz out of range", file.string(), sample_rate));
   DecodedAudio audio = TrackDecoder(file, sample_rate).decode();
   if (audio.damaged_packets > 0)

@@ -395,6 +395,36 @@ TEST(AudioFile, AClipWithoutAudioOrAFileThatIsNoRecordingIsAnErrorNamingIt) {
   EXPECT_THROW(decode_audio(dir.path() / "absent.mpg", 16000), AudioSourceError);
 }
 
+TEST(AudioFile, SoundBelow8kHzIsRefusedBeforeItIsDecodedAndSpeechRatesAreNot) {
+  // A 400 KB WAV at 10 Hz is 20,000 s long: resampled to 16 kHz it took 2.3 GB (at 1 Hz, all
+  // the memory there was); 20 samples at 1 Hz decoded as "0.00 s long".
+  const test::TempDir dir;
+  const auto write_wav = [&](int rate, std::int64_t samples) {
+    const fs::path file = dir.path() / fmt::format("{}hz.wav", rate);
+    WavWriter wav(file, rate);
+    wav.write_silence(samples);
+    wav.close();
+    return file;
+  };
+  const std::pair<int, std::int64_t> too_low[] = {{10, 200'000}, {1, 20}, {7999, 7999}};
+  for (const auto& [rate, samples] : too_low) {
+    const fs::path wav = write_wav(rate, samples);
+    try {
+      decode_audio(wav, 16000);
+      ADD_FAILURE() << rate << " Hz: no error";
+    } catch (const AudioSourceError& e) {
+      EXPECT_EQ(
+          std::string(e.what()),
+          fmt::format("{}: sound at {} Hz; at least 8000 Hz (the lowest speech is recorded at)", wav.string(), rate));
+    }
+  }
+  for (const int rate : {8000, 16000, 44100, 48000}) {
+    const DecodedAudio audio = decode_audio(write_wav(rate, rate / 2), 16000);
+    EXPECT_EQ(audio.source_rate, rate);
+    EXPECT_NEAR(static_cast<double>(audio.samples.size()), 8000, 2) << rate << " Hz";
+  }
+}
+
 // ---- the simulated microphone -----------------------------------------------------------
 
 TEST(SimulatedClipAudio, PlaysTheTrackInRealTimeStampedOnTheReplayTimeline) {

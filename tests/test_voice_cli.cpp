@@ -209,6 +209,20 @@ TEST(VoiceCli, ATakeWhoseRowsRunPastTheEndOfItsSoundIsADataErrorSayingHowFar) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+TEST(VoiceCli, ATakeWhoseSoundIsBelow8kHzIsADataErrorNamingItsRate) {
+  // 200,000 samples at 10 Hz: 20,000 s, refused before it is resampled (it took 2.3 GB).
+  const test::TempDir dir;
+  const fs::path take = write_take(dir.path(), "slow", 1);
+  const fs::path wav = fs::path(take).replace_extension(".wav");
+  WavWriter sound(wav, 10);
+  sound.write_silence(200'000);
+  sound.close();
+  const test::CommandRun run = test::run_command(
+      lipdrive(fmt::format("voice train --out {} {}", (dir.path() / "voice.lpv").string(), take.string())));
+  EXPECT_EQ(run.exit_code, 65) << run.output;
+  EXPECT_NE(run.output.find(wav.string() + ": sound at 10 Hz; at least 8000 Hz"), std::string::npos) << run.output;
+}
+
 TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
   const test::TempDir dir;
   const fs::path model = dir.path() / "voice.lpv";
