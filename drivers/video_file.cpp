@@ -93,6 +93,12 @@ struct VideoFile::Decoder {
 
   [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
 
+  /// Refuses pictures larger than kMaxPictureSide on a side.
+  void check_size(int width, int height) const {
+    if (width > kMaxPictureSide || height > kMaxPictureSide)
+      fail(fmt::format("pictures of {}×{} pixels; at most {} on a side", width, height, kMaxPictureSide));
+  }
+
   /// The decoded picture's time from the stream's start in seconds; none without a timestamp.
   std::optional<double> picture_time_s() const {
     const std::int64_t pts = picture->best_effort_timestamp;
@@ -150,11 +156,15 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
   d.stream = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, &codec, 0);
   if (d.stream < 0 || codec == nullptr) d.fail("not a video or image that can be decoded");
   AVStream* video = format->streams[d.stream];
+  d.check_size(video->codecpar->width, video->codecpar->height);
   d.codec.reset(avcodec_alloc_context3(codec));
   if (!d.codec) d.fail("out of memory");
   if (const int e = avcodec_parameters_to_context(d.codec.get(), video->codecpar); e < 0)
     d.fail(fmt::format("bad video parameters: {}", error_text(e)));
   d.codec->thread_count = 0;  // as many decoding threads as the codec can use
+  // A later picture larger than the first (a stream whose size changes) is refused by the
+  // decoder before it is allocated, and by read() where it still fits in these pixels.
+  d.codec->max_pixels = static_cast<std::int64_t>(kMaxPictureSide) * kMaxPictureSide;
   if (const int e = avcodec_open2(d.codec.get(), codec, nullptr); e < 0)
     d.fail(fmt::format("cannot open the video decoder: {}", error_text(e)));
 
@@ -193,6 +203,7 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
       d.damage = fmt::format("the file states its picture lasts {:.3f} s", *stated_end_s_);
     return false;
   }
+  d.check_size(d.picture->width, d.picture->height);
   previous_time_s_ = frame_time_s_;
   frame_time_s_ = d.picture_time_s();
   const std::int64_t slot = frame_time_s_ && frame_rate_ > 0 ? std::llround(*frame_time_s_ * frame_rate_) : -1;

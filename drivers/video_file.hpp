@@ -29,6 +29,12 @@ struct MediaError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// The largest side of a picture a file may hold: the largest side a camera of the product is
+/// configured with ([camera] width and height). A picture of 8192×8192 is 64 Mpx; a larger one
+/// costs memory and time out of all proportion to its file (a 249 KB PNG of 16000×16000 took
+/// 2.5 GB and 37 s), and is no camera's.
+inline constexpr int kMaxPictureSide = 8192;
+
 /// How a file means its frames to be seen: mirrored left to right first, then turned
 /// clockwise by `turn`. From a video stream's display matrix
 /// (its turn to the nearest quarter; a flip in the matrix is not applied) or a JPEG's EXIF
@@ -41,7 +47,8 @@ struct DisplayOrientation {
 
 class VideoFile {
  public:
-  /// Opens the file's first video stream and its decoder. Throws MediaError naming the file.
+  /// Opens the file's first video stream and its decoder. Throws MediaError naming the file,
+  /// also where its pictures are larger than kMaxPictureSide on a side (before any is decoded).
   explicit VideoFile(const std::filesystem::path& file);
   ~VideoFile();
   VideoFile(const VideoFile&) = delete;

@@ -217,6 +217,43 @@ TEST_F(MediaFilesTest, UnreadableImagesAreErrorsNamingTheFile) {
   }
 }
 
+// A picture larger than kMaxPictureSide on a side is refused before it is decoded (a 249 KB
+// PNG of 16000×16000 took 2.5 GB and 37 s), in an image, in a video, and where a video's
+// pictures grow past it on the way; one of kMaxPictureSide is read.
+TEST_F(MediaFilesTest, PicturesLargerThanACamerasAreRefusedNamingTheFileAndTheSize) {
+  const auto refused = [](const fs::path& file, const std::string& size) {
+    const std::string expected = fmt::format("{}: pictures of {} pixels; at most 8192 on a side", file.string(), size);
+    try {
+      VideoFile video(file);
+      cv::Mat gray, cr;
+      while (video.read(gray, cr)) {
+      }
+      ADD_FAILURE() << file << " was read";
+    } catch (const MediaError& e) {
+      EXPECT_EQ(e.what(), expected);
+    }
+  };
+  const fs::path wide = dir_ / "wide.png", widest = dir_ / "widest.png";
+  ASSERT_TRUE(cv::imwrite(wide.string(), cv::Mat(16, 9000, CV_8UC1, cv::Scalar(0))));
+  refused(wide, "9000×16");
+  ASSERT_TRUE(cv::imwrite(widest.string(), cv::Mat(16, kMaxPictureSide, CV_8UC1, cv::Scalar(0))));
+  cv::Mat gray, cr;
+  read_image(widest, gray, cr);
+  EXPECT_EQ(gray.size(), cv::Size(kMaxPictureSide, 16));
+
+  const fs::path tall = dir_ / "tall.mkv", small = dir_ / "small.mkv", list = dir_ / "list.txt",
+                 grows = dir_ / "grows.mkv";
+  ASSERT_NO_FATAL_FAILURE(
+      ffmpeg(fmt::format("-f lavfi -i color=gray:s=16x9000:r=25:d=0.12 -pix_fmt gray -c:v png {}", tall.string())));
+  refused(tall, "16×9000");
+  // Joined to a clip of 16×16 pictures: the stream says 16×16, its fourth picture is 16×9000.
+  ASSERT_NO_FATAL_FAILURE(
+      ffmpeg(fmt::format("-f lavfi -i color=gray:s=16x16:r=25:d=0.12 -pix_fmt gray -c:v png {}", small.string())));
+  std::ofstream(list) << fmt::format("file '{}'\nfile '{}'\n", small.string(), tall.string());
+  ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-f concat -safe 0 -i {} -c copy {}", list.string(), grows.string())));
+  refused(grows, "16×9000");
+}
+
 TEST_F(MediaFilesTest, JpegDecoderGivesTheLumaAndCrAndNeverAStaleFrame) {
   const cv::Mat card = test_card();
   std::vector<uchar> bytes;

@@ -582,6 +582,16 @@ TEST_F(ProcessTest, CommandLineMistakesExitWithUsage) {
   EXPECT_EQ(run_process("--help > /dev/null", dir_).exit_code, 0);
 }
 
+TEST_F(ProcessTest, APictureLargerThanACamerasIsADataErrorNamingItsSize) {
+  const fs::path wide = dir_ / "wide.png";
+  ASSERT_TRUE(cv::imwrite(wide.string(), cv::Mat(16, 9000, CV_8UC1, cv::Scalar(0))));
+  const ProcessRun run = run_process(wide.string(), dir_);
+  EXPECT_EQ(run.exit_code, 65) << run.stderr_text;
+  EXPECT_NE(run.stderr_text.find(wide.string() + ": pictures of 9000×16 pixels; at most 8192 on a side"),
+            std::string::npos)
+      << run.stderr_text;
+}
+
 TEST_F(ProcessTest, TextFileIsNotAVideo) {
   const fs::path text = dir_ / "notes.txt";
   std::ofstream(text) << "not a video\n";

@@ -238,6 +238,22 @@ TEST(ImageRotation, QuarterTurnsAreClockwiseAndKeepTheirBuffer) {
   for (const int degrees : {-90, 45, 360}) EXPECT_FALSE(rotation_from_degrees(degrees)) << degrees;
 }
 
+TEST_F(SimulatedCameraTest, AConfiguredPictureLargerThanACamerasIsAConfigurationErrorNamingTheKey) {
+  const auto path = dir_ / "tall.png";
+  ASSERT_TRUE(cv::imwrite(path.string(), cv::Mat(9000, 16, CV_8UC1, cv::Scalar(0))));
+  Config config;
+  config.camera.sim = {.input = path};
+  try {
+    make_source(config);
+    ADD_FAILURE() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(fmt::format(
+                  "key camera.input: {}: pictures of 16×9000 pixels; at most 8192 on a side", path.string())),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(SimulatedCameraTest, TheConfiguredCameraDeliversItsFramesTurnedUpright) {
   const auto path = dir_ / "sideways.png";
   cv::imwrite(path.string(), numbered_frame(3));
