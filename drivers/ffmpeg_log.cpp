@@ -12,6 +12,7 @@ extern "C" {
 #include <cstdarg>
 #include <cstdio>
 #include <string_view>
+#include <utility>
 
 namespace lipdrive {
 namespace {
@@ -20,6 +21,8 @@ namespace {
 /// sent it (its AVClass item name: the demuxer, the decoder) rather than by its address. FFmpeg
 /// writes some lines in pieces ("Packet corrupt (...)", then ".\n"): the pieces are gathered
 /// per thread until the newline.
+thread_local std::string last_error;  // take_ffmpeg_error()'s
+
 void log_message(void* component, int level, const char* format, va_list args) {
   if (level > AV_LOG_INFO) return;
   thread_local std::array<char, 1024> line{};
@@ -38,6 +41,7 @@ void log_message(void* component, int level, const char* format, va_list args) {
   const auto end = fmt::format_to_n(text.data(), text.size(), "{}{}{}", name != nullptr ? name : "",
                                     name != nullptr ? ": " : "", message);
   const std::string_view whole(text.data(), std::min(end.size, text.size()));
+  if (level <= AV_LOG_ERROR) last_error = whole;
   // A line that repeats this thread's last one (a damaged stream says the same thing every
   // frame) is counted, and the count logged before the thread's next different line.
   thread_local std::array<char, 1200> last{};
@@ -59,5 +63,7 @@ void log_message(void* component, int level, const char* format, va_list args) {
 }  // namespace
 
 void route_ffmpeg_log() { av_log_set_callback(log_message); }
+
+std::string take_ffmpeg_error() { return std::exchange(last_error, {}); }
 
 }  // namespace lipdrive

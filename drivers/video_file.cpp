@@ -1,6 +1,7 @@
 #include "drivers/video_file.hpp"
 
 #include "drivers/ffmpeg_handles.hpp"
+#include "drivers/ffmpeg_log.hpp"
 
 #include <fmt/format.h>
 #include <opencv2/core.hpp>
@@ -147,8 +148,12 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
   d.name = file.string();
   if (!d.packet || !d.picture) d.fail("out of memory");
   AVFormatContext* format = nullptr;
-  if (const int e = avformat_open_input(&format, d.name.c_str(), nullptr, nullptr); e < 0)
-    d.fail(fmt::format("cannot open: {}", error_text(e)));
+  take_ffmpeg_error();
+  if (const int e = avformat_open_input(&format, d.name.c_str(), nullptr, nullptr); e < 0) {
+    // The demuxer's own reason where it logged one: its return code may say little.
+    const std::string reason = take_ffmpeg_error();
+    d.fail(fmt::format("cannot open: {}", reason.empty() ? error_text(e) : reason));
+  }
   d.format.reset(format);
   if (const int e = avformat_find_stream_info(format, nullptr); e < 0)
     d.fail(fmt::format("cannot read the streams: {}", error_text(e)));

@@ -590,6 +590,14 @@ TEST_F(ProcessTest, APictureLargerThanACamerasIsADataErrorNamingItsSize) {
   EXPECT_NE(run.stderr_text.find(wide.string() + ": pictures of 9000×16 pixels; at most 8192 on a side"),
             std::string::npos)
       << run.stderr_text;
+  // A header FFmpeg refuses itself (its return code reads "Device or resource busy"): the reason it logged.
+  const fs::path huge = dir_ / "huge.y4m";
+  std::ofstream(huge) << "YUV4MPEG2 W30000 H30000 F25:1 Ip A1:1 C420jpeg\nFRAME\n";
+  const ProcessRun refused = run_process(huge.string(), dir_);
+  EXPECT_EQ(refused.exit_code, 65) << refused.stderr_text;
+  EXPECT_NE(refused.stderr_text.find(huge.string() + ": cannot open: IMGUTILS: Picture size 30000x30000 is invalid"),
+            std::string::npos)
+      << refused.stderr_text;
 }
 
 TEST_F(ProcessTest, TextFileIsNotAVideo) {
