@@ -155,21 +155,34 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
     d.fail(fmt::format("cannot open: {}", reason.empty() ? error_text(e) : reason));
   }
   d.format.reset(format);
-  if (const int e = avformat_find_stream_info(format, nullptr); e < 0)
-    d.fail(fmt::format("cannot read the streams: {}", error_text(e)));
+  // The probe decodes a picture where the container does not state its size (a PNG, a JPEG):
+  // it is held to the same size, so an oversized still is refused without being decoded.
+  constexpr std::int64_t kMaxPixels = static_cast<std::int64_t>(kMaxPictureSide) * kMaxPictureSide;
+  std::vector<AVDictionary*> probe_options(format->nb_streams, nullptr);
+  for (AVDictionary*& options : probe_options) av_dict_set_int(&options, "max_pixels", kMaxPixels, 0);
+  take_ffmpeg_error();
+  const int probed = avformat_find_stream_info(format, probe_options.data());
+  for (AVDictionary*& options : probe_options) av_dict_free(&options);
+  if (probed < 0) d.fail(fmt::format("cannot read the streams: {}", error_text(probed)));
+  const std::string probe_error = take_ffmpeg_error();
   const AVCodec* codec = nullptr;
   d.stream = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, &codec, 0);
   if (d.stream < 0 || codec == nullptr) d.fail("not a video or image that can be decoded");
   AVStream* video = format->streams[d.stream];
+  // A picture the probe refused to decode (larger than the limit) leaves its size unknown.
+  if (video->codecpar->width <= 0 || video->codecpar->height <= 0)
+    d.fail(fmt::format("cannot read the picture's size: {} (at most {} on a side)",
+                       probe_error.empty() ? "the probe found none" : probe_error, kMaxPictureSide));
   d.check_size(video->codecpar->width, video->codecpar->height);
   d.codec.reset(avcodec_alloc_context3(codec));
   if (!d.codec) d.fail("out of memory");
   if (const int e = avcodec_parameters_to_context(d.codec.get(), video->codecpar); e < 0)
     d.fail(fmt::format("bad video parameters: {}", error_text(e)));
   d.codec->thread_count = 0;  // as many decoding threads as the codec can use
-  // A later picture larger than the first (a stream whose size changes) is refused by the
-  // decoder before it is allocated, and by read() where it still fits in these pixels.
-  d.codec->max_pixels = static_cast<std::int64_t>(kMaxPictureSide) * kMaxPictureSide;
+  // A later picture larger than the first (a stream whose size changes): one over this many
+  // pixels the decoder refuses before it is allocated, and its packet is skipped as a damaged
+  // one (FFmpeg's warning in the log); one within them read() refuses.
+  d.codec->max_pixels = kMaxPixels;
   if (const int e = avcodec_open2(d.codec.get(), codec, nullptr); e < 0)
     d.fail(fmt::format("cannot open the video decoder: {}", error_text(e)));
 

@@ -48,7 +48,8 @@ struct DisplayOrientation {
 class VideoFile {
  public:
   /// Opens the file's first video stream and its decoder. Throws MediaError naming the file,
-  /// also where its pictures are larger than kMaxPictureSide on a side (before any is decoded).
+  /// also where its pictures are larger than kMaxPictureSide on a side (found from the file's
+  /// header where it states the size, else from FFmpeg's probe, held to kMaxPictureSide² pixels).
   explicit VideoFile(const std::filesystem::path& file);
   ~VideoFile();
   VideoFile(const VideoFile&) = delete;

@@ -252,6 +252,18 @@ TEST_F(MediaFilesTest, PicturesLargerThanACamerasAreRefusedNamingTheFileAndTheSi
   std::ofstream(list) << fmt::format("file '{}'\nfile '{}'\n", small.string(), tall.string());
   ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-f concat -safe 0 -i {} -c copy {}", list.string(), grows.string())));
   refused(grows, "16×9000");
+
+  // More pixels than kMaxPictureSide² in a still: FFmpeg's probe, held to that many, does not
+  // decode it either (a 16000×16000 PNG took 305 MB in the probe alone).
+  const fs::path huge = dir_ / "huge.png";
+  ASSERT_TRUE(cv::imwrite(huge.string(), cv::Mat(kMaxPictureSide + 8, kMaxPictureSide + 8, CV_8UC1, cv::Scalar(0))));
+  try {
+    VideoFile video(huge);
+    ADD_FAILURE() << huge << " was opened";
+  } catch (const MediaError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr(huge.string() + ": cannot read the picture's size: "));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("(at most 8192 on a side)"));
+  }
 }
 
 TEST_F(MediaFilesTest, JpegDecoderGivesTheLumaAndCrAndNeverAStaleFrame) {
