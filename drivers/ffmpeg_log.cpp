@@ -17,12 +17,12 @@ extern "C" {
 namespace lipdrive {
 namespace {
 
+thread_local std::string last_error;  // this thread's, for take_ffmpeg_error()
+
 /// FFmpeg's log callback: one spdlog line per line of FFmpeg's, named by the component that
 /// sent it (its AVClass item name: the demuxer, the decoder) rather than by its address. FFmpeg
 /// writes some lines in pieces ("Packet corrupt (...)", then ".\n"): the pieces are gathered
 /// per thread until the newline.
-thread_local std::string last_error;  // take_ffmpeg_error()'s
-
 void log_message(void* component, int level, const char* format, va_list args) {
   if (level > AV_LOG_INFO) return;
   thread_local std::array<char, 1024> line{};
