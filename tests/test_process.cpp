@@ -665,6 +665,27 @@ TEST_F(ProcessTest, AnInputThatGivesNoRowLeavesTheOutputAsItWas) {
     EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
 }
 
+// --out through a symbolic link replaces the file it points to and keeps the link; --out to
+// something that is not a file (/dev/stdout, a FIFO) is written straight through.
+TEST_F(ProcessTest, AnOutputThroughALinkOrToAStreamIsWrittenWhereItPoints) {
+  const fs::path image = kFixtureDir / "astronaut.png";
+  LIPDRIVE_REQUIRE_BUILT(image);
+  const fs::path target = dir_ / "v1.csv", link = dir_ / "latest.csv";
+  std::ofstream(target) << "an earlier table\n";
+  fs::create_symlink(target, link);
+  ProcessRun run = run_process(fmt::format("{} --out {}", image.string(), link.string()), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(read_csv_table(target).rows.size(), 1u);
+
+  const fs::path piped = dir_ / "piped.csv";
+  run = run_process(fmt::format("{} --out /dev/stdout > {}", image.string(), piped.string()), dir_);
+  ASSERT_EQ(run.exit_code, 0) << run.stderr_text;
+  EXPECT_EQ(read_csv_table(piped).rows.size(), 1u);
+  for (const auto& entry : fs::directory_iterator(dir_))
+    EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
+}
+
 TEST_F(ProcessTest, VideoWithoutAFaceWritesUntrackedRowsAndFails) {
   const fs::path noise = dir_ / "noise.avi";
   {

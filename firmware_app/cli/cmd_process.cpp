@@ -36,7 +36,6 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <mutex>
 #include <optional>
@@ -305,7 +304,7 @@ void run_process(const ProcessOptions& options) {
   if (!options.voice.empty()) voice.emplace(options.voice, options.input);
 
   // The rows replace the file only once written: a mistake in an input, an error before the
-  // first row or a process stopped halfway leaves the file as it was.
+  // first row or a process stopped halfway leaves the file as it was (FileReplacement).
   std::optional<FileReplacement> file;
   if (!options.out.empty()) file.emplace(options.out);
   std::ostream& out = file ? file->stream() : std::cout;

@@ -54,20 +54,27 @@ void save_model_file(const std::filesystem::path& path, const MorphableModel& mo
   replace_file(path, serialize_model(model));
 }
 
-FileReplacement::FileReplacement(std::filesystem::path path) : path_(std::move(path)), temp_(path_) {
-  // The pid keeps two concurrent writers of the same file from sharing a temporary file.
-  temp_ += fmt::format(".tmp{}", ::getpid());
-  // "--out new/dir/file" just works.
+FileReplacement::FileReplacement(std::filesystem::path path) : path_(std::move(path)) {
   std::error_code ec;
-  if (path_.has_parent_path()) std::filesystem::create_directories(path_.parent_path(), ec);
-  out_.open(temp_, std::ios::binary | std::ios::trunc);
-  if (!out_)
-    throw CommandError(fmt::format("{}: cannot write {} to replace it: {}", path_.string(), temp_.filename().string(),
-                                   std::strerror(errno)));
+  const std::filesystem::file_status status = std::filesystem::status(path_, ec);
+  if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    // Not a file to replace (/dev/stdout, a FIFO, /dev/null): written straight through.
+    out_.open(path_, std::ios::binary);
+  } else {
+    // A symbolic link's target is replaced, not the link. The pid keeps two concurrent writers
+    // of the same file from sharing a temporary file.
+    if (std::filesystem::exists(status)) path_ = std::filesystem::canonical(path_, ec);
+    temp_ = path_;
+    temp_ += fmt::format(".tmp{}", ::getpid());
+    // "--out new/dir/file" just works.
+    if (path_.has_parent_path()) std::filesystem::create_directories(path_.parent_path(), ec);
+    out_.open(temp_, std::ios::binary | std::ios::trunc);
+  }
+  if (!out_) throw CommandError(fmt::format("{}: cannot open for writing: {}", path_.string(), std::strerror(errno)));
 }
 
 FileReplacement::~FileReplacement() {
-  if (committed_) return;
+  if (committed_ || temp_.empty()) return;
   out_.close();
   std::error_code ec;
   std::filesystem::remove(temp_, ec);
@@ -75,11 +82,13 @@ FileReplacement::~FileReplacement() {
 
 void FileReplacement::commit() {
   out_.flush();
-  if (!out_) throw CommandError(fmt::format("{}: write failed (disk full?)", temp_.string()));
+  if (!out_) throw CommandError(fmt::format("{}: write failed (disk full?)", path_.string()));
   out_.close();
-  std::error_code ec;
-  std::filesystem::rename(temp_, path_, ec);
-  if (ec) throw CommandError(fmt::format("{}: cannot replace the file: {}", path_.string(), ec.message()));
+  if (!temp_.empty()) {
+    std::error_code ec;
+    std::filesystem::rename(temp_, path_, ec);
+    if (ec) throw CommandError(fmt::format("{}: cannot replace the file: {}", path_.string(), ec.message()));
+  }
   committed_ = true;
 }
 

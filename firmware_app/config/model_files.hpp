@@ -22,10 +22,11 @@ MorphableModel load_model_file(const std::filesystem::path& path);
 void save_model_file(const std::filesystem::path& path, const MorphableModel& model);
 
 /// A file written in full before it takes the place of `path`: what is written goes to a
-/// temporary file beside it (its folder made if need be), and commit() renames that over
-/// `path`, so a reader never sees a half-written file. Destroyed without commit() (an error on
-/// the way), the temporary file is removed and `path` stays as it was. Throws CommandError
-/// naming the file.
+/// temporary file beside it, NAME.tmpPID (its folder made if need be), and commit() renames
+/// that over `path` (over a symbolic link's target), so a reader never sees a half-written
+/// file. Destroyed without commit() (an error on the way), the temporary file is removed and
+/// `path` stays as it was; a process killed on the way leaves it behind. A `path` that is not a
+/// file (/dev/stdout, a FIFO) is written straight through. Throws CommandError naming the file.
 class FileReplacement {
  public:
   explicit FileReplacement(std::filesystem::path path);
