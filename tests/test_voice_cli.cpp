@@ -196,13 +196,13 @@ TEST(VoiceCli, ATakeWhoseRowsRunPastTheEndOfItsSoundIsADataErrorSayingHowFar) {
       << run.output;
   EXPECT_FALSE(fs::exists(out));
 
-  // Another, longer take's sound: 2.5 s under rows that end at 2.0 s (the last row's frame).
+  // Another, longer take's sound: 2.5 s under rows whose last is at 1.96 s.
   cut_sound(b, 2.5);
   run = test::run_command(lipdrive(
       fmt::format("voice train --hidden 0 --past-ms 40 --out {} {} {}", out.string(), a.string(), b.string())));
   EXPECT_EQ(run.exit_code, 65) << run.output;
-  EXPECT_NE(run.output.find(fmt::format("{}: 2.50 s long, 0.50 s longer than the 50 rows of {} (2.00 s); another "
-                                        "take's sound",
+  EXPECT_NE(run.output.find(fmt::format("{}: 2.50 s long, 0.54 s past the last of the 50 rows of {}; another take's "
+                                        "sound",
                                         fs::path(b).replace_extension(".wav").string(), b.string())),
             std::string::npos)
       << run.output;
@@ -227,8 +227,7 @@ TEST(VoiceCli, EvalOfATrainedModelNeedsRecordingsToTestOn) {
   const test::TempDir dir;
   const fs::path model = dir.path() / "voice.lpv";
   save_voice_model_file(model, synthetic_model());
-  const test::CommandRun run =
-      test::run_command(lipdrive(fmt::format("voice eval --voice {} --folds 3", model.string())));
+  const test::CommandRun run = test::run_command(lipdrive(fmt::format("voice eval --voice {}", model.string())));
   EXPECT_EQ(run.exit_code, kExitUsage) << run.output;
   EXPECT_NE(run.output.find("--test"), std::string::npos) << run.output;
   EXPECT_EQ(run.output.find("nan"), std::string::npos) << run.output;
@@ -243,6 +242,13 @@ TEST(VoiceCli, EvalRefusesMoreFoldsThanRecordings) {
       lipdrive(fmt::format("voice eval --train {} {} {} --folds 4", a.string(), b.string(), c.string())));
   EXPECT_EQ(run.exit_code, kExitUsage) << run.output;
   EXPECT_NE(run.output.find("--folds: 4 exceeds the 3 recordings of --train"), std::string::npos) << run.output;
+  // A trained model is not cross-validated: --folds beside --voice was ignored without a word.
+  const fs::path model = dir.path() / "voice.lpv";
+  save_voice_model_file(model, synthetic_model());
+  const test::CommandRun beside =
+      test::run_command(lipdrive(fmt::format("voice eval --voice {} --test {} --folds 2", model.string(), a.string())));
+  EXPECT_EQ(beside.exit_code, kExitUsage) << beside.output;
+  EXPECT_NE(beside.output.find("--folds: cross-validates --train"), std::string::npos) << beside.output;
 }
 
 TEST(VoiceCli, TrainEvalAndProcessOnGridClips) {

@@ -244,6 +244,8 @@ void run_eval(const EvalCommand& c) {
   if (!c.voice.empty() == !c.train.empty())
     throw CLI::ValidationError("--voice / --train",
                                "give either a trained model (--voice) or material to train on (--train)");
+  if (!c.voice.empty() && c.folds > 0)
+    throw CLI::ValidationError("--folds", "cross-validates --train; a --voice model is trained already");
   if (!c.voice.empty() && c.test.empty())
     throw CLI::ValidationError("--test",
                                "recordings to evaluate the --voice model on (--folds cross-validates --train)");

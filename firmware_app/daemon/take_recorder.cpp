@@ -214,7 +214,7 @@ void TakeRecorder::fail(const std::string& message) {
     spdlog::warn("{}: {} rows were lost before, because the storage could not keep up", file_.string(), lost);
   active_ = false;
   fd_.reset();
-  if (sound_) sound_->close();  // the take ended: so does its sound
+  if (sound_) sound_->close(last_row_ns_);  // the take ended: its sound ends with the last row formatted
   std::lock_guard lock(mutex_);
   error_ = message;
 }

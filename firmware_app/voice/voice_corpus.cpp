@@ -19,10 +19,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// How far a take's last row may lie past the end of its sound, or its sound past the end of
-// its last row's frame: the recorder's sound is as long as its rows within two of the
-// listener's 10 ms blocks (tests/test_voice_room.cpp); a tenth of
-// a second leaves room for a sound card's longer period and stays under three video frames.
+// How far a take's last row may lie past the end of its sound, or its sound past its last row:
+// the recorder's sound is as long as its rows within two of the listener's 10 ms blocks (tests/test_voice_room.cpp); a
+// tenth of a second leaves room for a sound card's longer period and stays under three video frames.
 constexpr double kTakeSoundSlack_s = 0.1;
 
 void require_file(const fs::path& file, std::string_view what) {
@@ -133,15 +132,14 @@ VoiceRecording load_take(const fs::path& take, int sample_rate) {
                                    recording.targets.back().time_s - sound_s, wav.string(), sound_s),
                        kExitDataError);
   }
-  // The recorder ends the sound with the last row's frame: a sound that runs on past it by more
-  // than the slack is not this take's, and its rows would be paired with another take's sound.
-  const std::size_t rows = recording.targets.size();
-  const double rows_s = rows < 2 ? 0 : recording.targets.back().time_s * static_cast<double>(rows) / (rows - 1);
-  if (rows > 0 && sound_s > rows_s + kTakeSoundSlack_s)
-    throw CommandError(fmt::format("{}: {:.2f} s long, {:.2f} s longer than the {} rows of {} ({:.2f} s); another "
-                                   "take's sound",
-                                   wav.string(), sound_s, sound_s - rows_s, rows, take.string(), rows_s),
-                       kExitDataError);
+  // The recorder ends the sound with the last row: a sound that runs on past it by more than the
+  // slack is not this take's, and its rows would be paired with another take's sound.
+  const double last_row_s = recording.targets.empty() ? 0 : recording.targets.back().time_s;
+  if (sound_s > last_row_s + kTakeSoundSlack_s)
+    throw CommandError(
+        fmt::format("{}: {:.2f} s long, {:.2f} s past the last of the {} rows of {}; another take's sound",
+                    wav.string(), sound_s, sound_s - last_row_s, recording.targets.size(), take.string()),
+        kExitDataError);
   return recording;
 }
 
