@@ -102,13 +102,13 @@ bool is_bilabial_word(std::string_view word) {
 }
 
 ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words,
-                             double frames_per_second) {
+                             double frames_per_second, std::span<const double> scale_by) {
   const int n = static_cast<int>(values.size());
   const auto widening = static_cast<int>(std::lround(ClosureMetric::kWidening_s * frames_per_second));
   const auto silence_delay = static_cast<int>(std::lround(ClosureMetric::kSilenceDelay_s * frames_per_second));
   // Min-max scaled over the tracked frames; untracked frames stay NaN.
   double lowest = std::numeric_limits<double>::infinity(), highest = -lowest;
-  for (double v : values)
+  for (double v : scale_by.empty() ? values : scale_by)
     if (std::isfinite(v)) lowest = std::min(lowest, v), highest = std::max(highest, v);
   std::vector<double> scaled(values.size(), kNaN);
   for (int f = 0; f < n; ++f)

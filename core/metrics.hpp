@@ -88,8 +88,10 @@ struct ClosureMetric {
 
 /// `values[f]` is frame f's value at `frames_per_second`, NaN when it was not tracked; words
 /// are clipped to the series, and a bilabial word wholly outside it is listed as outside,
-/// neither a closure nor one of bilabial_words (the recording does not hold it).
+/// neither a closure nor one of bilabial_words (the recording does not hold it). The values are
+/// min-max scaled by the range of `scale_by` (all of a recording's values, where `values` holds
+/// only the frames the words reach), by their own when it is empty.
 ClosureMetric closure_metric(std::span<const double> values, std::span<const WordFrames> words,
-                             double frames_per_second);
+                             double frames_per_second, std::span<const double> scale_by = {});
 
 }  // namespace lipdrive

@@ -275,7 +275,8 @@ TEST_F(ConfigTest, PathsMustNameWhatTheKeyReads) {
   }
   // The daemon refuses it at once instead of hanging on the FIFO (which no signal would end).
   write_text(fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n", kModel.string(), fifo.string()));
-  const test::CommandRun run = run_lipdrive("run --frames 1 --config " + file_.string());
+  const test::CommandRun run =
+      test::run_command("timeout 30 " + std::string(test::kLipdrive) + " run --frames 1 --config " + file_.string());
   EXPECT_EQ(run.exit_code, 78) << run.output;
 }
 

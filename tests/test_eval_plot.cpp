@@ -190,7 +190,7 @@ TEST_F(EvalPlotTest, EvalWithAlignmentOfLongWordsAtAHighFrameRateIsQuick) {
   std::string words;
   for (long i = 0; i < 200; ++i) words += fmt::format("{} {} bin\n", i * 450'000, (i + 1) * 450'000);
   const auto align = write("long.align", words);
-  const RunResult result = run({"eval", "--truth", fast, "--pred", fast, "--align", align, "--json"}, "timeout 10 ");
+  const RunResult result = run({"eval", "--truth", fast, "--pred", fast, "--align", align, "--json"}, "timeout 60 ");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   const auto report = nlohmann::json::parse(result.out);
   EXPECT_EQ(report.at("frames_matched"), 3);
@@ -273,12 +273,13 @@ TEST_F(EvalPlotTest, EvalPlacesTheWordsFromTheEarliestRowWhateverItsFrameNumber)
 }
 
 TEST_F(EvalPlotTest, EvalOfARowFarPastTheWordsCostsNoMemoryAndScalesAsAnyOther) {
-  // The worked example and one row more past its words, its value the highest: at frame 40 and at
-  // frame 900,000,000 (a table without time_s, so its rate is not checked) the figures are the
-  // same; the frames between are not held one by one (a row at 999,999,999 took 15.7 GB and 55 s).
+  // The worked example and one row more past its words, its value the highest: at frame 17 (held in
+  // the series, which reaches a closure window's widening past the last word) and at frame 900,000,000 (a table without
+  // time_s, so its rate is not checked) the figures are the same; the frames between are not held
+  // one by one (a row at 999,999,999 took 15.7 GB and 55 s).
   std::string csv = "frame,tracked,open\n";
   for (std::size_t f = 0; f < kWorkedOpen.size(); ++f) csv += fmt::format("{},1,{}\n", f, kWorkedOpen[f]);
-  const nlohmann::json near = closure_of(csv + "40,1,2.0\n"), far = closure_of(csv + "900000000,1,2.0\n");
+  const nlohmann::json near = closure_of(csv + "17,1,2.0\n"), far = closure_of(csv + "900000000,1,2.0\n");
   ASSERT_FALSE(near.empty());
   EXPECT_EQ(far, near);
   // Scaled by the new maximum 2.0: the opening halves.
@@ -431,7 +432,7 @@ TEST_F(EvalPlotTest, EvalOfATableWithManyColumnsIsQuick) {
     row += ",1";
   }
   const auto wide = write("wide.csv", header + "\n" + row + "\n");
-  const RunResult result = run({"eval", "--truth", wide, "--pred", wide}, "timeout 10 ");
+  const RunResult result = run({"eval", "--truth", wide, "--pred", wide}, "timeout 60 ");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_THAT(result.out, HasSubstr("1 frames matched"));
   EXPECT_THAT(result.out, HasSubstr(fmt::format("\nc{} ", kColumns - 1)));
@@ -531,7 +532,7 @@ TEST_F(EvalPlotTest, PlotOfValuesThatDifferInTheirLastDigitIsAConstantLine) {
   const auto near = write("near.csv", "frame,time_s,open\n0,0,0.3\n1,0.04,0.30000000000000004\n2,0.08,0.3\n");
   const auto png = dir_ / "near.png";
   // Under `timeout`: a plot whose ticks never pass the range's end runs until the memory is gone.
-  const RunResult result = run({"plot", near, "--columns", "open", "--out", png}, "timeout 10 ");
+  const RunResult result = run({"plot", near, "--columns", "open", "--out", png}, "timeout 60 ");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_EQ(line_colour_count(cv::imread(png.string(), cv::IMREAD_COLOR), 300), 1);
 }
@@ -556,6 +557,10 @@ TEST_F(EvalPlotTest, PlotRefusesARepeatedColumnAndMorePanelsThanFitTheHeightLimi
   EXPECT_EQ(tall.exit_code, 64);
   EXPECT_THAT(tall.err, HasSubstr("--columns: 50 panels of 240 px"));
   EXPECT_THAT(tall.err, HasSubstr("(35 panels fit)"));
+  // With --height: 50 panels in 2000 px leave each less than the smallest a panel may be.
+  const RunResult squeezed = run({"plot", wide, "--columns", columns, "--out", png, "--height", "2000"});
+  EXPECT_EQ(squeezed.exit_code, 64);
+  EXPECT_THAT(squeezed.err, HasSubstr("--width/--height: 1000x2000 pixels is too small for 50 panel(s)"));
   EXPECT_FALSE(fs::exists(png));
 }
 

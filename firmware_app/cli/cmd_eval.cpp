@@ -180,9 +180,8 @@ int first_frame(const CsvTable& table) {
 /// closure_metric of each column, its values placed by frame number from `origin` (NaN where a
 /// frame is missing or was not tracked); `words` are on the frames from `origin`, and the
 /// results' words are given back on the CSV's frame numbers. Rows past the words and their
-/// closure windows count only toward the range the values are scaled by, so they are kept as
-/// their lowest and highest value: a frame number far out (a take's after a long outage, a
-/// damaged row) costs no memory.
+/// closure windows count only toward the range the values are scaled by, so the series ends
+/// there: a frame number far out (a take's after a long outage, a damaged row) costs no memory.
 std::vector<ColumnClosure> closure_columns(const CsvTable& pred, const std::vector<std::string>& columns,
                                            std::span<const WordFrames> words, double frames_per_second, int origin) {
   const std::vector<int> frames = frame_numbers(pred);
@@ -195,15 +194,9 @@ std::vector<ColumnClosure> closure_columns(const CsvTable& pred, const std::vect
   for (const std::string& column : columns) {
     const std::vector<double> values = numeric_column(pred, column);
     std::vector<double> series(static_cast<std::size_t>(count), std::nan(""));
-    double lowest_after = INFINITY, highest_after = -INFINITY;
-    for (std::size_t row = 0; row < frames.size(); ++row) {
-      if (frames[row] - origin < count)
-        series[static_cast<std::size_t>(frames[row] - origin)] = values[row];
-      else if (std::isfinite(values[row]))
-        lowest_after = std::min(lowest_after, values[row]), highest_after = std::max(highest_after, values[row]);
-    }
-    if (lowest_after <= highest_after) series.insert(series.end(), {lowest_after, highest_after});
-    ClosureMetric metric = closure_metric(series, words, frames_per_second);
+    for (std::size_t row = 0; row < frames.size(); ++row)
+      if (frames[row] - origin < count) series[static_cast<std::size_t>(frames[row] - origin)] = values[row];
+    ClosureMetric metric = closure_metric(series, words, frames_per_second, values);
     for (WordClosure& w : metric.words) w.first += origin, w.last += origin;
     results.push_back({column, std::move(metric)});
   }

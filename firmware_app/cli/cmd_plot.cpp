@@ -281,8 +281,9 @@ cv::Mat render_plot(const std::vector<Trajectories>& files, const PlotOptions& o
   const int panel_height = (height - header - kMarginBottom - (panels - 1) * kPanelGap) / panels - kPanelHeaderHeight;
   const int panel_width = options.width - kMarginLeft - kMarginRight;
   if (panel_height < 40 || panel_width < 100) {
-    throw CommandError(fmt::format("{}x{} pixels is too small for {} panel(s)", options.width, height, panels),
-                       kExitConfig);
+    throw CommandError(
+        fmt::format("--width/--height: {}x{} pixels is too small for {} panel(s)", options.width, height, panels),
+        kExitUsage);
   }
 
   cv::Mat image(height, options.width, CV_8UC3, kBackground);
