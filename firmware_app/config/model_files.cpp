@@ -63,7 +63,8 @@ FileReplacement::FileReplacement(std::filesystem::path path) : path_(std::move(p
   } else {
     // A symbolic link's target is replaced, not the link. The pid keeps two concurrent writers
     // of the same file from sharing a temporary file.
-    if (std::filesystem::exists(status)) path_ = std::filesystem::canonical(path_, ec);
+    if (std::filesystem::exists(status))
+      if (std::filesystem::path target = std::filesystem::canonical(path_, ec); !ec) path_ = std::move(target);
     temp_ = path_;
     temp_ += fmt::format(".tmp{}", ::getpid());
     // "--out new/dir/file" just works.
