@@ -15,7 +15,7 @@ namespace lipdrive {
 namespace {
 
 // An alignment covers one take: an hour is far beyond any, and keeps every frame number an
-// int and the frame sets eval builds small.
+// int and the series eval builds over the words' frames small.
 constexpr long kMaxAlignTime = 3600L * kAlignUnitsPerSecond;
 
 std::optional<long> parse_time(const std::string& text) {
