@@ -23,6 +23,7 @@
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -663,6 +664,41 @@ TEST_F(ProcessTest, AnInputThatGivesNoRowLeavesTheOutputAsItWas) {
   EXPECT_EQ(read_csv_table(out).rows.size(), frame_count(source));
   for (const auto& entry : fs::directory_iterator(dir_))
     EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
+}
+
+// Ctrl-C (or a kill) in the middle of a run ends it between two frames: exit 128 + the signal,
+// the output as it was and no temporary file beside it. The signal is sent once the run has made
+// its temporary file, while it works through a clip four times the fixture's length.
+TEST_F(ProcessTest, AnInterruptedRunLeavesTheOutputAsItWas) {
+  const fs::path source = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(source);
+  const fs::path clip = dir_ / "long.avi";
+  {
+    cv::VideoCapture reader(source.string());
+    std::vector<cv::Mat> frames;
+    for (cv::Mat frame; reader.read(frame);) frames.push_back(frame.clone());
+    ASSERT_FALSE(frames.empty());
+    cv::VideoWriter writer(clip.string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, frames[0].size());
+    ASSERT_TRUE(writer.isOpened());
+    for (int pass = 0; pass < 4; ++pass)
+      for (const cv::Mat& frame : frames) writer.write(frame);
+  }
+  const fs::path out = dir_ / "keep.csv";
+  constexpr const char* kEarlier = "an earlier table\n";
+  for (const char* signal : {"INT", "TERM"}) {
+    std::ofstream(out) << kEarlier;
+    const test::CommandRun run = test::run_command(fmt::format(
+        "cd {} && {{ {} process {} --out keep.csv & pid=$!; until [ -e keep.csv.tmp$pid ]; do sleep 0.001; done; "
+        "kill -{} $pid; wait $pid; echo exit $?; }}",
+        dir_.string(), test::kLipdrive, clip.string(), signal));
+    const int number = std::string(signal) == "INT" ? SIGINT : SIGTERM;
+    EXPECT_NE(run.output.find(fmt::format("exit {}", 128 + number)), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find(fmt::format("stopped by {}", strsignal(number))), std::string::npos) << run.output;
+    std::ifstream in(out);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()), kEarlier);
+    for (const auto& entry : fs::directory_iterator(dir_))
+      EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
+  }
 }
 
 // --out through a symbolic link replaces the file it points to and keeps the link; --out to

@@ -14,6 +14,7 @@
 #include "core/voice_training.hpp"
 #include "drivers/audio_file.hpp"
 #include "drivers/clock.hpp"
+#include "firmware_app/cli/blocked_signals.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/cli/recording.hpp"
@@ -36,6 +37,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <mutex>
 #include <optional>
@@ -283,6 +285,9 @@ Config config_for(const ProcessOptions& options) {
 }
 
 void run_process(const ProcessOptions& options) {
+  // Ctrl-C, a kill or a closed terminal ends the run between two frames like an error does: the
+  // output file as it was, no temporary file left beside it.
+  const BlockedSignals interrupts({SIGINT, SIGTERM, SIGHUP});
   const auto timecode = timecode_start(options);
   SimulatedCamera camera = open_recording(options.input);
   Config config = config_for(options);
@@ -333,6 +338,10 @@ void run_process(const ProcessOptions& options) {
   const std::unique_ptr<std::thread, decltype(stop_decoder)> decoder_guard(&decoder, stop_decoder);
 
   for (;;) {
+    if (const int signal = interrupts.take())
+      throw CommandError(fmt::format("{}: stopped by {} after {} frames{}", options.input.string(), strsignal(signal),
+                                     rows, file ? fmt::format("; {} left as it was", options.out.string()) : ""),
+                         128 + signal);
     DecodedFrame& frame = ring.oldest();
     if (frame.kind == DecodedFrame::Kind::kEnd) break;
     if (frame.kind == DecodedFrame::Kind::kError) {
