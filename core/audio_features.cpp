@@ -20,7 +20,8 @@ constexpr float kMinBandEnergy = 1e-10f;
 }  // namespace
 
 const char* invalid_feature_settings(const AudioFeatureSettings& s) {
-  if (s.sample_rate < 8000 || s.sample_rate > 192'000) return "sample rate outside 8000..192000 Hz";
+  if (s.sample_rate < kMinAudioSampleRate || s.sample_rate > kMaxAudioSampleRate)
+    return "sample rate outside 8000..192000 Hz";
   if (s.hop < 16 || s.hop > kMaxFeatureHop) return "hop outside 16..1024 samples";
   if (s.window < s.hop || s.window > 8192 || !std::has_single_bit(static_cast<unsigned>(s.window)))
     return "window must be a power of two, at least the hop, at most 8192";

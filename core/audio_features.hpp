@@ -10,6 +10,8 @@
 // Thread model: one owner thread.
 #pragma once
 
+#include "core/audio_rates.hpp"
+
 #include <array>
 #include <cstdint>
 #include <memory>

@@ -1,5 +1,6 @@
 #include "drivers/alsa_capture.hpp"
 
+#include "core/audio_rates.hpp"
 #include "drivers/clock.hpp"
 
 #include <alsa/asoundlib.h>
@@ -142,7 +143,7 @@ AlsaCapture::AlsaCapture(AlsaCaptureOptions options, std::unique_ptr<AlsaPcm> pc
   if (o.channels < 1 || o.channels > 8 || o.channel < 0 || o.channel >= o.channels)
     throw AudioSourceError(
         fmt::format("{}: channel {} of {} channels: out of range", describe(), o.channel, o.channels));
-  if (o.sample_rate < 8000 || o.sample_rate > 192'000 || o.period_frames < 16 ||
+  if (o.sample_rate < kMinAudioSampleRate || o.sample_rate > kMaxAudioSampleRate || o.period_frames < 16 ||
       o.period_frames > kMaxAudioBlockFrames || o.periods < 2)
     throw AudioSourceError(
         fmt::format("{}: rate {} Hz or period {} samples out of range", describe(), o.sample_rate, o.period_frames));

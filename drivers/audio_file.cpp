@@ -199,7 +199,7 @@ class TrackDecoder {
 }  // namespace
 
 DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate) {
-  if (sample_rate < kMinAudioSampleRate || sample_rate > 192'000)
+  if (sample_rate < kMinAudioSampleRate || sample_rate > kMaxAudioSampleRate)
     throw AudioSourceError(fmt::format("{}: sample rate {} Hz out of range", file.string(), sample_rate));
   DecodedAudio audio = TrackDecoder(file, sample_rate).decode();
   if (audio.damaged_packets > 0)

@@ -3,6 +3,7 @@
 // the voice model is trained and evaluated on), and the WAV file a take's sound is written to.
 #pragma once
 
+#include "core/audio_rates.hpp"
 #include "drivers/audio_source.hpp"
 
 #include <cstdint>
@@ -12,12 +13,6 @@
 #include <vector>
 
 namespace lipdrive {
-
-/// The lowest sample rate decode_audio() takes, of the file's track and of the rate asked for:
-/// the lowest speech is recorded at (telephone sound). A track at a lower rate is not a recording
-/// of a voice, and resampling it would cost memory out of all proportion to the file (a 400 KB
-/// WAV at 10 Hz is 20,000 s long: 1.3 GB of samples at 16 kHz).
-inline constexpr int kMinAudioSampleRate = 8000;
 
 struct DecodedAudio {
   std::vector<float> samples;  // mono: the mean of the track's channels, [-1, 1]
@@ -33,7 +28,9 @@ struct DecodedAudio {
 /// track whose channels, sample format or rate change on the way; damaged packets are skipped
 /// and counted (a warning in the log). Throws AudioSourceError naming the file: it cannot be
 /// opened or read, it has no audio track, the track cannot be decoded, or its sample rate is
-/// below kMinAudioSampleRate (checked before any sound is decoded, and again where it changes).
+/// below kMinAudioSampleRate (checked before any sound is decoded, and again where it changes:
+/// resampling such a track would cost memory out of all proportion to the file, a 400 KB WAV at
+/// 10 Hz being 20,000 s long, 1.3 GB of samples at 16 kHz).
 DecodedAudio decode_audio(const std::filesystem::path& file, int sample_rate);
 
 /// A mono 16-bit PCM WAV file written block by block through FFmpeg's WAV muxer. The sizes in

@@ -1,5 +1,6 @@
 #include "sim/ltc_generator.hpp"
 
+#include "core/audio_rates.hpp"
 #include "drivers/clock.hpp"
 
 #include <ltc.h>
@@ -65,7 +66,8 @@ SimulatedLtcAudio::SimulatedLtcAudio(SimulatedLtcOptions options)
         if (!frame) throw std::invalid_argument("simulated LTC: the start is not a timecode at this rate");
         return *frame;
       }()) {
-  if (options_.sample_rate < 8000 || options_.block_frames < 1 || options_.block_frames > kMaxAudioBlockFrames)
+  if (options_.sample_rate < kMinAudioSampleRate || options_.sample_rate > kMaxAudioSampleRate ||
+      options_.block_frames < 1 || options_.block_frames > kMaxAudioBlockFrames)
     throw std::invalid_argument("simulated LTC: sample rate or block size out of range");
 }
 

@@ -1,6 +1,7 @@
 // `lipdrive voice train` and `lipdrive voice eval`: the per-performer voice model
 // (docs/method.md 11, docs/voice.md) learned from the performer's own clips, and
 // how well it follows the video on recordings it never saw.
+#include "core/audio_rates.hpp"
 #include "core/metrics.hpp"
 #include "core/voice_training.hpp"
 #include "firmware_app/cli/command_error.hpp"
@@ -69,7 +70,7 @@ VoiceTrainingSettings settings_for(const TrainingOptions& o, double lookahead_ms
 
 void add_training_options(CLI::App* cmd, TrainingOptions& o, bool sweep) {
   cmd->add_option("--sample-rate", o.sample_rate, "the sound is resampled to this (Hz); the live input must match")
-      ->check(CLI::Range(8000, 48000))
+      ->check(CLI::Range(kMinAudioSampleRate, 48000))
       ->capture_default_str();
   auto* lookahead = cmd->add_option("--lookahead-ms", o.lookahead_ms,
                                     sweep ? "look-ahead(s) in ms, 0..80; several: one model each (a sweep)"

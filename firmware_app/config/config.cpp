@@ -1,5 +1,6 @@
 #include "firmware_app/config/config.hpp"
 
+#include "core/audio_rates.hpp"
 #include "core/osc_addresses.hpp"
 #include "drivers/serial_port.hpp"
 #include "drivers/udp_socket.hpp"
@@ -554,7 +555,7 @@ void read_timecode(Section timecode, Config& config) {
     t.sim.rate = *rate;
   else
     timecode.fail("sim_fps", fmt::format("must be 24, 25, 29.97 (drop-frame) or 30, got {}", sim_fps));
-  t.sim.sample_rate = timecode.integer("sample_rate", t.sim.sample_rate, 8000, 192'000);
+  t.sim.sample_rate = timecode.integer("sample_rate", t.sim.sample_rate, kMinAudioSampleRate, kMaxAudioSampleRate);
   read_alsa_input(timecode, t.sim.sample_rate, t.alsa);
   timecode.reject_unknown_keys();
 }
@@ -565,7 +566,7 @@ void read_voice(Section voice, Config& config) {
   v.model = voice.string("model", "");
   v.input = voice.one_of("input", "sim", {"sim", "alsa"}) == "alsa" ? Config::Voice::Input::kAlsa
                                                                     : Config::Voice::Input::kSim;
-  const int sample_rate = voice.integer("sample_rate", v.alsa.sample_rate, 8000, 48'000);
+  const int sample_rate = voice.integer("sample_rate", v.alsa.sample_rate, kMinAudioSampleRate, 48'000);
   read_alsa_input(voice, sample_rate, v.alsa);
   v.crossfade_ms = voice.integer("crossfade_ms", v.crossfade_ms, 0, 2000);
   v.audio_timeout_ms = voice.integer("audio_timeout_ms", v.audio_timeout_ms, 20, 5000);
