@@ -2,7 +2,8 @@
 // simulated microphone of the same clip read it, so that they stay in step the way a camera
 // and a microphone on the same performer do (an outage of one does not hold up the other).
 //
-// Thread model: any thread; the first call of start_ns() fixes the start.
+// Thread model: any thread; the first call of start_ns() fixes the start. The loop's length is
+// set by the camera as it opens the recording, before the sound is opened.
 #pragma once
 
 #include "drivers/clock.hpp"
@@ -22,8 +23,14 @@ class ReplayClock {
     return start_.compare_exchange_strong(start, now, std::memory_order_acq_rel) ? now : start;
   }
 
+  /// One pass of a looping replay, in seconds (SimulatedCamera::duration_s()); 0 when the
+  /// recording plays once: the sound loops at it too.
+  void set_loop_s(double seconds) { loop_s_.store(seconds, std::memory_order_release); }
+  double loop_s() const { return loop_s_.load(std::memory_order_acquire); }
+
  private:
   std::atomic<std::int64_t> start_{0};
+  std::atomic<double> loop_s_{0};
 };
 
 }  // namespace lipdrive

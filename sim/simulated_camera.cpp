@@ -81,6 +81,7 @@ SimulatedCamera::SimulatedCamera(SimulatedCameraOptions options, ReplayClock* cl
 
   if (kind_ == Kind::kImages) frame_rate_ = options_.image_frame_rate;
   if (options_.replay_rate > 0) frame_rate_ = options_.replay_rate;
+  if (clock_) clock_->set_loop_s(options_.loop ? duration_s() : 0);
 }
 
 void SimulatedCamera::open_video() {

@@ -54,7 +54,8 @@ class SimulatedCamera : public FrameSource {
   /// its start + its own time on the recording (media_time_s; at a replay rate, and an image, n
   /// periods for frame n), and after an injected outage the replay goes on with the frame due
   /// then, as a camera that comes back shows the present. Without it the replay starts at the
-  /// first grab() and resumes after an outage where it stopped.
+  /// first grab() and resumes after an outage where it stopped. A looping replay sets the
+  /// clock's loop length to duration_s().
   explicit SimulatedCamera(SimulatedCameraOptions options, ReplayClock* clock = nullptr);
 
   /// Delivers the next frame. A video whose reading ends in damage (VideoFile::damage(): a

@@ -388,6 +388,10 @@ TEST_F(SimulatedCameraTest, ALoopingReplayRestartsItsPictureWhereItsSoundLoops) 
     SimulatedCamera camera({.input = clip, .real_time = true, .loop = true}, &clock);
     const double pass_s = camera.duration_s();
     EXPECT_NEAR(pass_s, sound_s, 2 / kFps);  // the sound's, with the AAC encoder's priming and padding
+    EXPECT_EQ(clock.loop_s(), pass_s) << "the sound loops where the picture does";
+    ReplayClock once;
+    SimulatedCamera({.input = clip, .real_time = true, .loop = false}, &once);
+    EXPECT_EQ(once.loop_s(), 0) << "a replay that plays once";
     Frame frame;
     for (int i = 0; i < kFrames; ++i) ASSERT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kFrame) << "frame " << i;
     // The picture holds its last frame through the sound's tail: the next frame is the first

@@ -86,7 +86,7 @@ std::unique_ptr<TimecodeSource> make_timecode(const Config& config) {
   return nullptr;
 }
 
-std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s, TakeSound* sound) {
+std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, TakeSound* sound) {
   const Config::Voice& voice = config.voice;
   if (!voice.enabled) return nullptr;
   const std::string video_only = "the drive follows the video alone";
@@ -107,10 +107,11 @@ std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* cl
   std::unique_ptr<AudioSource> input;
   if (voice.input == Config::Voice::Input::kSim) {
     try {
-      input = std::make_unique<SimulatedClipAudio>(
-          SimulatedAudioOptions{
-              .clip = config.camera.sim.input, .sample_rate = rate, .block_frames = rate / 100, .loop_s = loop_s},
-          clock);
+      input = std::make_unique<SimulatedClipAudio>(SimulatedAudioOptions{.clip = config.camera.sim.input,
+                                                                         .sample_rate = rate,
+                                                                         .block_frames = rate / 100,
+                                                                         .loop_s = clock ? clock->loop_s() : 0},
+                                                   clock);
     } catch (const AudioSourceError& e) {
       spdlog::error("voice: {}; {}", e.what(), video_only);
       return nullptr;

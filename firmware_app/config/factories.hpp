@@ -26,9 +26,9 @@ std::unique_ptr<FrameSource> make_source(const Config& config, ReplayClock* cloc
 /// The [voice] room, or nullptr when it is not enabled or cannot run: a voice model that
 /// cannot be loaded or was trained for another sample rate, or a clip without sound, is logged
 /// naming the file and the daemon drives from the video alone. A sound card that cannot be
-/// opened yet is logged and retried (video only meanwhile). `clock` and `loop_s`: the
-/// simulated camera's timeline and its replay's length when it loops (else 0), for input "sim".
-std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, double loop_s, TakeSound* sound);
+/// opened yet is logged and retried (video only meanwhile). `clock`: the simulated camera's
+/// timeline, with its loop's length, for input "sim".
+std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, TakeSound* sound);
 
 /// The [side_camera], or nullptr when it is not enabled.
 std::unique_ptr<SideCamera> make_side_camera(const Config& config);

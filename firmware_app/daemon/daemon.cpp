@@ -54,10 +54,8 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
   // The clip's sound keeps to the simulated camera's timeline.
   const bool sim_voice = config_.voice.enabled && config_.voice.input == Config::Voice::Input::kSim;
   std::unique_ptr<FrameSource> source = make_source(config_, sim_voice ? &replay_clock_ : nullptr);
-  const double loop_s =
-      sim_voice && config_.camera.sim.loop ? static_cast<const SimulatedCamera&>(*source).duration_s() : 0.0;
   if (config_.voice.enabled) sound_ = std::make_unique<TakeSound>(config_.voice.alsa.sample_rate);
-  voice_ = make_voice_room(config_, &replay_clock_, loop_s, sound_.get());
+  voice_ = make_voice_room(config_, &replay_clock_, sound_.get());
   if (!voice_) sound_.reset();
   timecode_ = make_timecode(config_);
   recorder_ = std::make_unique<TakeRecorder>(
