@@ -212,10 +212,13 @@ void TakeRecorder::fail(const std::string& message) {
   // The take's lost rows are this take's, not the next one's.
   if (const std::uint64_t lost = ring_.take_dropped(); lost > 0)
     spdlog::warn("{}: {} rows were lost before, because the storage could not keep up", file_.string(), lost);
-  active_ = false;
   fd_.reset();
   if (sound_) sound_->close(last_row_ns_);  // the take ended: its sound ends with the last row formatted
   std::lock_guard lock(mutex_);
+  // A take asked for since (start() while this one failed) is not this one's: it keeps its rows
+  // coming and starts without this error.
+  if (start_request_) return;
+  active_ = false;
   error_ = message;
 }
 

@@ -71,6 +71,8 @@ class TakeRecorder : public ResultSink {
   /// The take's first lines; `first`: its first row (nullptr: the take has none).
   void append_header(const FrameResult* first);
   bool write_all(const char* data, std::size_t size);
+  /// Ends the take on a write or open error: logged, and error() says it unless another take
+  /// was asked for meanwhile.
   void fail(const std::string& message);
 
   std::string source_;
