@@ -22,6 +22,7 @@
 #include <functional>
 #include <random>
 #include <string_view>
+#include <utility>
 
 namespace lipdrive {
 namespace {
@@ -332,14 +333,23 @@ void Monitor::encoder_loop() {
   cv::Mat canvas;
   JpegEncoder front(kJpegQuality), side(kJpegQuality);  // each keeps its FFmpeg encoder for its image size
   std::int64_t next_sample_ns = monotonic_ns();
+  bool encoding_failed = false;  // logged once until a picture is encoded again
   while (!stop_.load(std::memory_order_relaxed)) {
     const std::int64_t wait_ns = std::max<std::int64_t>(next_sample_ns - monotonic_ns(), 0);
     const PreviewFrame* frame = sources_.preview.take(std::chrono::nanoseconds(wait_ns));
     // Taken either way, so that the next one is the newest; drawn and encoded only for a viewer.
     if (frame && monotonic_ns() - preview_asked_ns_.load(std::memory_order_relaxed) <= kPreviewInterestNs) {
-      front_jpeg_.publish(preview_jpeg(*frame, canvas, front), frame->sequence, monotonic_ns());
-      if (frame->side) side_jpeg_.publish(side_preview_jpeg(*frame, canvas, side), frame->sequence, monotonic_ns());
-      counters_.encoded.fetch_add(1, std::memory_order_relaxed);
+      // A picture that cannot be encoded (FFmpeg refusing a size, memory) costs the page its
+      // preview, never the daemon its life: an exception out of this thread would end the process.
+      try {
+        front_jpeg_.publish(preview_jpeg(*frame, canvas, front), frame->sequence, monotonic_ns());
+        if (frame->side) side_jpeg_.publish(side_preview_jpeg(*frame, canvas, side), frame->sequence, monotonic_ns());
+        counters_.encoded.fetch_add(1, std::memory_order_relaxed);
+        encoding_failed = false;
+      } catch (const std::exception& e) {
+        if (!std::exchange(encoding_failed, true))
+          spdlog::warn("monitor: the preview cannot be encoded: {}; the page shows none meanwhile", e.what());
+      }
     }
     const std::int64_t now = monotonic_ns();
     if (now < next_sample_ns) continue;
