@@ -315,19 +315,17 @@ class Session {
         fail("cannot queue a request: " + error_text(error));
   }
 
-  // libcamera's thread.
+  // libcamera's thread. Each notifies while it holds the lock: the capture thread, which may
+  // destroy this session as soon as it sees gone_ (a timed wait that ends on its own), cannot
+  // do so between the change and the notification.
   void on_request_completed(libcamera::Request* request) {
-    {
-      std::lock_guard lock(mutex_);
-      completed_.push_back(request);
-    }
+    std::lock_guard lock(mutex_);
+    completed_.push_back(request);
     completed_cv_.notify_one();
   }
   void on_disconnected() {
-    {
-      std::lock_guard lock(mutex_);
-      gone_ = true;
-    }
+    std::lock_guard lock(mutex_);
+    gone_ = true;
     completed_cv_.notify_one();
   }
 
