@@ -235,6 +235,50 @@ TEST_F(ReloadTest, WhatTheOperatorSetOutlivesAReload) {
   EXPECT_EQ(daemon.wait(10s), 0) << daemon.log();
 }
 
+// A take started by --record (or [recording] start) and stopped by the operator stays stopped
+// through a reload: the options are for the first start, the operator's state for the rest.
+TEST_F(ReloadTest, ATakeTheOperatorStoppedIsNotStartedAgainByAReload) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  const int port = test::free_port();
+  const fs::path takes = dir_ / "takes";
+  test::DaemonProcess daemon(
+      modbus_server_config(port, fmt::format("[recording]\ndir = \"{}\"\nstart = true\n", takes.string())),
+      dir_ / "stderr.txt", "--record");
+  ASSERT_TRUE(daemon.wait_for_log("running:", 120s)) << daemon.log();
+  modbus_t* master = modbus_new_tcp("127.0.0.1", port);
+  ASSERT_NE(master, nullptr);
+  ASSERT_EQ(modbus_connect(master), 0) << modbus_strerror(errno);
+  constexpr std::uint16_t kRecording = 1 << 4;
+  const auto recording = [&] {
+    std::uint16_t word = 0;
+    return modbus_read_input_registers(master, 0, 1, &word) == 1 && (word & kRecording) != 0;
+  };
+  const auto wait_for_recording = [&](bool set) {
+    const auto deadline = Clock::now() + 30s;
+    while (recording() != set && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+    return recording() == set;
+  };
+  ASSERT_TRUE(wait_for_recording(true)) << daemon.log();
+  ASSERT_EQ(modbus_write_register(master, 2, 0), 1);  // stop the take
+  ASSERT_TRUE(wait_for_recording(false)) << daemon.log();
+  modbus_close(master);
+
+  daemon.signal(SIGHUP);
+  const auto deadline = Clock::now() + 60s;
+  while (count(daemon.log(), "running:") < 2 && Clock::now() < deadline) std::this_thread::sleep_for(5ms);
+  ASSERT_EQ(count(daemon.log(), "running:"), 2) << daemon.log();
+  ASSERT_EQ(modbus_connect(master), 0) << modbus_strerror(errno);
+  std::this_thread::sleep_for(300ms);
+  EXPECT_FALSE(recording()) << daemon.log();
+  modbus_close(master);
+  modbus_free(master);
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(10s), 0) << daemon.log();
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(takes)) files += entry.path().extension() == ".csv";
+  EXPECT_EQ(files, 1) << "the first take only";
+}
+
 TEST_F(ReloadTest, TheWatchdogIsFedThroughReloads) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   // The unit's WatchdogSec=2; the daemon pings at a quarter of it.

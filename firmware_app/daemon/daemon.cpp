@@ -33,12 +33,14 @@ bool model_mismatch(const Config& config, const PerformerProfile& profile, Loade
 }  // namespace
 
 Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
-               const DaemonOptions& options, LoadedFiles& files, const OperatorState& carried)
+               const DaemonOptions& options, LoadedFiles& files, const std::optional<OperatorState>& carried)
     : config_(std::move(config)), profile_(std::move(profile)) {
-  control_.outputs_enabled.store(carried.outputs_enabled);
-  for (const auto& [name, value] : carried.overrides)
-    if (const std::optional<int> channel = find_channel(config_.channels, name))
-      control_.overrides[static_cast<std::size_t>(*channel)].store(value);
+  if (carried) {
+    control_.outputs_enabled.store(carried->outputs_enabled);
+    for (const auto& [name, value] : carried->overrides)
+      if (const std::optional<int> channel = find_channel(config_.channels, name))
+        control_.overrides[static_cast<std::size_t>(*channel)].store(value);
+  }
   PipelineSettings settings;
   settings.max_frames = options.max_frames;
   settings.watchdog_interval = options.watchdog_interval;
@@ -90,10 +92,10 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
     preview_ = std::make_unique<PreviewFeed>(config_.monitor.preview_fps, config_.monitor.preview_size);
     pipeline_->set_preview(*preview_);
   }
-  if (options.record || config_.recording.start || carried.recording) {
+  if (carried ? carried->recording : options.record || config_.recording.start) {
     const std::string take = take_file_name(config_.recording.dir);
     recorder_->start(take);
-    if (carried.recording) spdlog::info("the take goes on in {}", take);
+    if (carried) spdlog::info("the take goes on in {}", take);
   }
   pipeline_->start();
   spdlog::info("running: {}, model {}, landmark set {}, predictor {}", pipeline_->describe_source(),

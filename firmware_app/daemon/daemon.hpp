@@ -61,9 +61,10 @@ class Daemon {
   /// something cannot be opened or loaded. `files` holds the model the performer's profile is
   /// checked against (it outlives the daemon).
   /// `carried` (a reload's: operator_state() of the daemon it replaces) is in force before the
-  /// pipeline starts.
+  /// pipeline starts; with it, a take is recorded where one was (a take the operator stopped is
+  /// not started again by --record or [recording] start, which are for the first start).
   Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
-         const DaemonOptions& options, LoadedFiles& files, const OperatorState& carried = {});
+         const DaemonOptions& options, LoadedFiles& files, const std::optional<OperatorState>& carried = {});
   ~Daemon();
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
