@@ -342,6 +342,63 @@ std::unique_ptr<Pipeline> replaying(const SimulatedCameraOptions::FaultInjection
   return std::make_unique<Pipeline>(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
 }
 
+/// An output whose publish() blocks once, for `block`, from its 30th frame on: a serial adapter
+/// that hangs the output thread in its open, a log that stopped being read.
+class StuckOutput : public Output {
+ public:
+  explicit StuckOutput(std::chrono::milliseconds block) : block_(block) {}
+  void publish(const DriveFrame&) override {
+    if (++count_ != 30) return;
+    stuck_at = std::chrono::steady_clock::now();
+    std::this_thread::sleep_for(block_);
+    freed_at = std::chrono::steady_clock::now();
+  }
+  std::string describe() const override { return "stuck output"; }
+  std::atomic<std::chrono::steady_clock::time_point> stuck_at{}, freed_at{};
+
+ private:
+  std::chrono::milliseconds block_;
+  int count_ = 0;
+};
+
+// A stuck output thread holds every output at its last values; the processing thread goes on,
+// but the watchdog is not fed once the output thread has not come round for a second, so that
+// systemd restarts the daemon; the pings resume when it comes round again.
+TEST_F(PipelineTest, AStuckOutputThreadStopsTheWatchdogsPings) {
+  const fs::path socket = fs::temp_directory_path() / fmt::format("lipdrive_notify_{}.sock", ::getpid());
+  fs::remove(socket);
+  test::NotifySocket notify(socket);
+  ::setenv("NOTIFY_SOCKET", socket.c_str(), 1);
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  PipelineSettings settings;
+  settings.watchdog_interval = 50ms;
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
+  StuckOutput output(2500ms);
+  pipeline.add_output(output);
+  pipeline.start();
+  using Clock = std::chrono::steady_clock;
+  std::vector<Clock::time_point> pings;
+  const auto deadline = Clock::now() + 60s;
+  while (Clock::now() < deadline) {
+    if (notify.receive(50ms).find("WATCHDOG=1") != std::string::npos) pings.push_back(Clock::now());
+    const Clock::time_point freed = output.freed_at;
+    if (freed != Clock::time_point{} && !pings.empty() && pings.back() > freed) break;
+  }
+  pipeline.stop();
+  ::unsetenv("NOTIFY_SOCKET");
+  fs::remove(socket);
+  const Clock::time_point stuck = output.stuck_at, freed = output.freed_at;
+  ASSERT_NE(freed, Clock::time_point{}) << "the output was stuck and let go";
+  const auto count_between = [&](Clock::time_point from, Clock::time_point to) {
+    return std::count_if(pings.begin(), pings.end(), [&](Clock::time_point t) { return t > from && t < to; });
+  };
+  EXPECT_GT(count_between(Clock::time_point{}, stuck), 0) << "fed before";
+  EXPECT_EQ(count_between(stuck + 1200ms, freed), 0) << "not fed while the output thread is stuck";
+  EXPECT_GT(count_between(freed, Clock::time_point::max()), 0) << "fed again once it comes round";
+}
+
 TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
   DriveControl control;
   const std::unique_ptr<Pipeline> replay = replaying({.disconnect_after = 10, .reconnect = 400ms}, control);

@@ -13,8 +13,10 @@ namespace lipdrive {
 namespace {
 
 // A capture loop that has not come back from grab() for this long is stuck (grab() returns
-// at least every Capture::kGrabTimeout), and the watchdog must stop being fed.
-constexpr std::int64_t kCaptureStallNs = 1'000'000'000;
+// at least every Capture::kGrabTimeout), and so is an output loop that has not come round (it
+// wakes at least every output tick; an output's publish() that blocks holds every output at its
+// last values): the watchdog must stop being fed.
+constexpr std::int64_t kThreadStallNs = 1'000'000'000;
 
 double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
@@ -45,6 +47,7 @@ void Pipeline::set_profile(const PerformerProfile& profile) {
 void Pipeline::start() {
   start_ns_ = monotonic_ns();
   last_watchdog_ns_ = 0;
+  output_heartbeat_ns_ = start_ns_;
   const int priority = settings_.realtime_priority;
   std::string refused;  // the first refusal: the reason is the same for every thread
   const auto note = [&refused](std::string why) {
@@ -204,8 +207,9 @@ void Pipeline::calibrate_step(const FrameResult& result) {
 void Pipeline::ping_watchdog(std::int64_t now_ns) {
   if (settings_.watchdog_interval.count() == 0) return;
   if (now_ns - last_watchdog_ns_ < std::chrono::nanoseconds(settings_.watchdog_interval).count()) return;
-  // A stuck capture thread stalls the pipeline just as surely as a stuck processing loop.
-  if (now_ns - capture_.heartbeat_ns() > kCaptureStallNs) return;
+  // A stuck capture or output thread stalls the drive just as surely as a stuck processing loop.
+  if (now_ns - capture_.heartbeat_ns() > kThreadStallNs) return;
+  if (now_ns - output_heartbeat_ns_.load(std::memory_order_relaxed) > kThreadStallNs) return;
   last_watchdog_ns_ = now_ns;
   sd_notify(0, "WATCHDOG=1");
 }
@@ -270,6 +274,7 @@ void Pipeline::output_loop() {
     frame.new_result = version != seen;
     seen = version;
     const std::int64_t now = monotonic_ns();
+    output_heartbeat_ns_.store(now, std::memory_order_relaxed);
     if (frame.new_result && version > 0) output_latency_.add(now - result.capture_time_ns);
 
     for (int i = 0; i < channels_.size(); ++i)

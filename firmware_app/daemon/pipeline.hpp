@@ -210,6 +210,7 @@ class Pipeline {
   std::atomic<std::uint64_t> processed_{0}, tracked_{0}, lost_track_{0}, warmed_{0};
   std::atomic<bool> finished_{false};
   std::atomic<bool> stop_processing_{false}, stop_outputs_{false};
+  std::atomic<std::int64_t> output_heartbeat_ns_{0};  // the output thread's last round
   std::int64_t start_ns_ = 0;
   std::atomic<std::int64_t> stop_ns_{0};
 
