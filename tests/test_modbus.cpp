@@ -1,6 +1,7 @@
 // The Modbus outputs against real peers: libmodbus masters reading and writing the register
 // map over loopback TCP and over an RTU pty pair (socat), the client output writing to a
 // libmodbus slave that goes away and comes back, and the server under garbage and load.
+#include "captured_log.hpp"
 #include "drivers/clock.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
@@ -607,6 +608,38 @@ TEST(ModbusClient, WritesChannelsAndRidesOutADeadSlave) {
   std::printf("capture->wire latency median %.2f ms, p99 %.2f ms over %llu frames\n",
               output.wire_latency()->quantile_ms(0.5), output.wire_latency()->quantile_ms(0.99),
               static_cast<unsigned long long>(output.wire_latency()->count()));
+}
+
+// A slave that stopped answering does not hold the stop for one more request's timeout: the
+// neutral pose is not tried on a link whose last request went unanswered (said in the log), and
+// the stop waits at most for a request already on its way.
+TEST(ModbusClient, AStopWithASilentSlaveWaitsForNoFurtherTimeout) {
+  const testing::CapturedLog log;
+  TestSlave slave;
+  ModbusClientOptions options;
+  options.link.port = slave.port();
+  options.timeout_ms = 2000;
+  options.max_backoff_ms = 10'000;
+  auto output = std::make_unique<ModbusClientOutput>(options, kChannels);
+  output->publish(frame_with(1, 500, 1234));
+  ASSERT_TRUE(wait_for([&] { return output->sends_ok() > 0; }));
+  slave.set_answering(false);
+  std::uint32_t counter = 2;
+  ASSERT_TRUE(wait_for(
+      [&] {
+        output->publish(frame_with(counter++, 700, 1234));  // new values, until one goes unanswered
+        return output->sends_failed() > 0;
+      },
+      30s));
+  output->publish(frame_with(counter, 0, 0));  // the neutral pose
+  const auto start = std::chrono::steady_clock::now();
+  output.reset();
+  const auto stop_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(stop_ms, options.timeout_ms + 1000) << "a stop waited for another request";
+  const std::vector<std::string> warnings = log.messages(spdlog::level::warn);
+  EXPECT_TRUE(std::ranges::any_of(
+      warnings, [](const std::string& m) { return m.find("the neutral pose was not sent") != std::string::npos; }));
 }
 
 TEST(ModbusClient, UnknownChannelIsNamed) {

@@ -1,7 +1,8 @@
 // The base of every output that sends drive frames to a peer over a link that can block or go
 // away (a Modbus slave, olad, ...): the frames cross to a thread of its own, which sends the
 // newest one at most rate_hz times a second, retries a failed peer with the one back-off
-// (core/backoff.hpp) and sends the pipeline's last frame (the neutral pose) before it stops.
+// (core/backoff.hpp) and sends the pipeline's last frame (the neutral pose) before it stops,
+// unless the peer is failing (a stop is not held for another of its timeouts).
 //
 // Thread model: publish() runs on the pipeline's output thread and only stores the frame in a
 // seqlock; a slow or absent peer never reaches it. The sender thread owns the link: it alone
@@ -40,7 +41,8 @@ class SenderOutput : public Output {
  protected:
   SenderOutput(std::string description, int rate_hz, std::chrono::milliseconds max_backoff);
   void start();
-  /// Sends the newest frame if it has not gone out yet, then joins the thread.
+  /// Sends the newest frame if it has not gone out yet (unless the peer failed the last
+  /// attempt), then joins the thread.
   void stop();
 
   /// Sender thread: puts `frame` on the link, (re)connecting first when needed. False when
