@@ -353,6 +353,8 @@ TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
                                       "past the last register, 65535"));
   write("", std::string(kJawChannel) + "[[outputs.modbus_client]]\nfirst_register = 65535");
   EXPECT_EQ(load_config(file_).outputs.modbus_clients[0].first_register, 65535) << "one channel fits";
+  write("", std::string(kJawChannel) + "[[outputs.modbus_client]]\ntimeout_ms = 5000");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_client[0].timeout_ms: must be between 1 and 2000, got 5000"));
   write("", "[[outputs.modbus_server]]\nparity = \"X\"");
   EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_server[0].parity: must be one of N, E, O"));
   write("", "[performer]\nname = \"nobody\"\nprofiles_dir = \"" + dir_.string() + "\"");

@@ -630,7 +630,7 @@ void read_outputs(Section outputs, Config& config) {
       client.fail("first_register", fmt::format("{} channels from register {} run past the last register, 65535",
                                                 registers, options.first_register));
     options.rate_hz = client.integer("rate_hz", options.rate_hz, 1, 1000);
-    options.timeout_ms = client.integer("timeout_ms", options.timeout_ms, 1, 10'000);
+    options.timeout_ms = client.integer("timeout_ms", options.timeout_ms, 1, 2000);
     options.max_backoff_ms = client.integer("max_backoff_ms", options.max_backoff_ms, 10, 600'000);
     client.reject_unknown_keys();
     config.outputs.modbus_clients.push_back(options);
