@@ -146,6 +146,36 @@ port = {}
   EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusOutputsEnabled) != 0; }, 3s));
   ASSERT_GT(lo_send(to, "/lipdrive/calibrate", ""), 0);
   EXPECT_TRUE(daemon.wait_for_log("calibrating", 3s)) << daemon.log();
+
+  // A sender gone wrong: 3,000 junk datagrams and 3,000 commands as fast as they go. The log
+  // keeps to ten lines a second of each, then says how many it held back.
+  const auto lines_with = [&](const std::string& text) {
+    const std::string log = daemon.log();
+    int n = 0;
+    for (auto at = log.find(text); at != std::string::npos; at = log.find(text, at + 1)) ++n;
+    return n;
+  };
+  const int enables_before = lines_with("/lipdrive/output_enable");
+  const int junk = ::socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in control{};
+  control.sin_family = AF_INET;
+  control.sin_port = htons(static_cast<std::uint16_t>(control_port));
+  control.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  const auto flood_start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 3000; ++i) {
+    ::sendto(junk, "not osc", 7, 0, reinterpret_cast<const sockaddr*>(&control), sizeof control);
+    lo_send(to, "/lipdrive/output_enable", "i", 1);
+    if (i % 100 == 99) std::this_thread::sleep_for(1ms);  // within the socket's buffer
+  }
+  ::close(junk);
+  const double flood_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - flood_start).count() + 1.0;
+  std::this_thread::sleep_for(1100ms);
+  ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 1), 0);  // in a new second: logged with the count
+  EXPECT_TRUE(daemon.wait_for_log("more held back", 3s)) << daemon.log();
+  const int most = static_cast<int>(10 * (flood_s + 2));
+  EXPECT_LE(lines_with("malformed OSC datagram"), most);
+  EXPECT_LE(lines_with("/lipdrive/output_enable") - enables_before, most);
+  EXPECT_GE(lines_with("malformed OSC datagram"), 1);
   lo_address_free(to);
 
   daemon.signal(SIGTERM);

@@ -48,10 +48,11 @@ void OscControl::run() {
   while (!stop_.load(std::memory_order_relaxed)) {
     const auto received = receiver_.receive(
         kPoll, [this](const OscMessage& m) { handle(m); }, &from);
-    if (received == OscReceiver::Received::kMalformed)
-      spdlog::warn("{}: a malformed OSC datagram from {}", describe(), from);
-    else if (received == OscReceiver::Received::kBundle)
-      spdlog::warn("{}: a bundle from {}; send commands as single messages", describe(), from);
+    const bool malformed = received == OscReceiver::Received::kMalformed;
+    if (std::uint64_t held = 0; (malformed || received == OscReceiver::Received::kBundle) && refused_log_.pass(held))
+      spdlog::warn("{}: {} from {}{}", describe(),
+                   malformed ? "a malformed OSC datagram" : "a bundle (send commands as single messages)", from,
+                   held_back_note(held));
   }
 }
 
@@ -69,25 +70,32 @@ void OscControl::handle(const OscMessage& m) {
       take_ = static_cast<int>(*take);
     }
   };
+  std::size_t command = 0;  // which of command_log_
   if (address == osc::kRecordStart) {
     set_slate(0);
     set_take(1);
     control_.recording_request.store(1, std::memory_order_relaxed);
   } else if (address == osc::kRecordStop) {
+    command = 1;
     control_.recording_request.store(0, std::memory_order_relaxed);
   } else if (address == osc::kSlate) {
+    command = 2;
     set_slate(0);
   } else if (address == osc::kTake) {
+    command = 3;
     set_take(0);
   } else if (address == osc::kCalibrate) {
+    command = 4;
     control_.calibrate_requests.fetch_add(1, std::memory_order_relaxed);
   } else if (address == osc::kOutputEnable) {
+    command = 5;
     if (const auto on = m.number(0)) control_.outputs_enabled.store(*on != 0, std::memory_order_relaxed);
   } else {
     spdlog::debug("{}: ignored {} ,{}", describe(), address, m.types());
     return;
   }
-  spdlog::info("{}: {} ,{}", describe(), address, m.types());
+  if (std::uint64_t held = 0; command_log_[command].pass(held))
+    spdlog::info("{}: {} ,{}{}", describe(), address, m.types(), held_back_note(held));
 }
 
 }  // namespace lipdrive

@@ -10,8 +10,10 @@
 #pragma once
 
 #include "drivers/osc_receiver.hpp"
+#include "firmware_app/daemon/log_throttle.hpp"
 #include "firmware_app/outputs/output.hpp"
 
+#include <array>
 #include <atomic>
 #include <mutex>
 #include <optional>
@@ -41,6 +43,10 @@ class OscControl {
 
   OscReceiver receiver_;  // the thread's
   DriveControl& control_;
+  // A command's lines at most ten a second each (a fader that sends output_enable at its own
+  // rate, a sender gone wrong), with the count held back; malformed datagrams and bundles too.
+  std::array<LogThrottle, 6> command_log_;  // the thread's, by command
+  LogThrottle refused_log_;                 // the thread's
   std::mutex mutex_;
   std::string slate_;  // under mutex_
   int take_ = 1;       // under mutex_

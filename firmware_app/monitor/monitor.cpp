@@ -299,7 +299,8 @@ void Monitor::add_routes() {
         response.status = refusal;
         if (refusal == 401) response.set_header("WWW-Authenticate", "Bearer realm=\"lipdrive\"");
         response.set_content(refusal == 401 ? "this needs the control token\n" : "wrong control token\n", "text/plain");
-        spdlog::warn("monitor: {} refused ({}) from {}", what, refusal, request.remote_addr);
+        if (std::uint64_t held = 0; refused_log_.pass(held))
+          spdlog::warn("monitor: {} refused ({}) from {}{}", what, refusal, request.remote_addr, held_back_note(held));
         return;
       }
       act();

@@ -21,6 +21,7 @@
 
 #include "core/drive_channels.hpp"
 #include "firmware_app/config/config.hpp"
+#include "firmware_app/daemon/log_throttle.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
 #include "firmware_app/daemon/preview_feed.hpp"
 #include "firmware_app/outputs/output.hpp"
@@ -101,6 +102,7 @@ class Monitor {
   const std::string token_;
   const std::int64_t start_ns_;
   Counters counters_;
+  LogThrottle refused_log_;  // refused commands' lines at most ten a second (workers)
 
   std::unique_ptr<History> history_;  // encoder writes, workers read; under history_mutex_
   mutable std::mutex history_mutex_;
