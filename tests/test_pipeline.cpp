@@ -724,6 +724,28 @@ TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
   pipeline.stop();
 }
 
+// The take's folder deleted while it records (a clean-up of the takes folder): the take stops
+// with an error instead of writing on into a file nobody can open.
+TEST_F(PipelineTest, ATakeWhoseFileIsRemovedStopsWithAnError) {
+  const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_removed_take_{}", ::getpid());
+  fs::create_directories(dir);
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{}, control);
+  TakeRecorder recorder("clip", 50ms);
+  pipeline.set_recorder(recorder);
+  recorder.start(dir / "takes" / "take.csv");
+  pipeline.start();
+  wait_for([&] { return fs::exists(dir / "takes" / "take.csv") && fs::file_size(dir / "takes" / "take.csv") > 0; },
+           30s);
+  ASSERT_TRUE(recorder.recording());
+  fs::remove_all(dir);
+  wait_for([&] { return recorder.error().has_value(); }, 30s);
+  pipeline.stop();
+  ASSERT_TRUE(recorder.error().has_value());
+  EXPECT_THAT(*recorder.error(), HasSubstr("the file was removed"));
+  EXPECT_FALSE(recorder.recording());
+}
+
 // ---------------------------------------------------------------- `lipdrive run`
 
 class RunTest : public ::testing::Test {

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <ctime>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <utility>
 
@@ -86,8 +87,12 @@ void TakeRecorder::run() {
     drain();
     if (sound_) sound_->drain();
     if (fd_.valid() && std::chrono::steady_clock::now() - last_sync_ >= flush_interval_) {
+      struct stat file {};
       if (::fdatasync(fd_.get()) != 0)
         fail(fmt::format("{}: recording stopped: {}", file_.string(), std::strerror(errno)));
+      else if (::fstat(fd_.get(), &file) == 0 && file.st_nlink == 0)
+        // Writes to a file whose last name is gone succeed and reach nothing anyone can open.
+        fail(fmt::format("{}: recording stopped: the file was removed (its folder deleted?)", file_.string()));
       last_sync_ = std::chrono::steady_clock::now();
     }
     if (quit) break;
