@@ -15,8 +15,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <optional>
 #include <stdexcept>
@@ -29,6 +31,25 @@ namespace {
 // RTU: a failed serial line is reopened with back-off, from 100 ms up to 5 s.
 constexpr std::chrono::milliseconds kReopenFirst{100}, kReopenMax{5000};
 constexpr int kAcceptRetryMs = 100;
+// TCP keepalive: a peer that vanished without a FIN (a PLC power-cycled, a cable pulled) is
+// found out after about a minute of silence instead of the kernel's two hours.
+constexpr int kKeepaliveIdleS = 30, kKeepaliveIntervalS = 10, kKeepaliveProbes = 3;
+
+/// A TCP client and when it last sent a request (or connected): a full server makes room
+/// by closing the quietest one.
+struct TcpClient {
+  UniqueFd fd;
+  std::chrono::steady_clock::time_point last_request;
+};
+
+void set_client_options(int fd) {
+  const int on = 1;
+  ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);  // replies go out at once
+  ::setsockopt(fd, SOL_SOCKET, SO_KEEPALIVE, &on, sizeof on);
+  ::setsockopt(fd, IPPROTO_TCP, TCP_KEEPIDLE, &kKeepaliveIdleS, sizeof kKeepaliveIdleS);
+  ::setsockopt(fd, IPPROTO_TCP, TCP_KEEPINTVL, &kKeepaliveIntervalS, sizeof kKeepaliveIntervalS);
+  ::setsockopt(fd, IPPROTO_TCP, TCP_KEEPCNT, &kKeepaliveProbes, sizeof kKeepaliveProbes);
+}
 
 /// The holding registers a request writes and the values they get, decoded from the request
 /// itself so that the owner hears of a write before the acknowledgement goes out. Empty when
@@ -156,25 +177,28 @@ bool ModbusServer::answer_one() {
 }
 
 void ModbusServer::serve_tcp() {
-  std::vector<UniqueFd> clients;
+  std::vector<TcpClient> clients;
+  clients.reserve(static_cast<std::size_t>(max_clients_));
   std::vector<pollfd> fds;
-  bool refusing = false;  // log a full server once, not once per refused connection
+  bool evicting = false;       // log a full server once, not once per closed connection
   bool cannot_accept = false;  // and a process out of descriptors once
   while (!stopping_.load(std::memory_order_relaxed)) {
     fds.assign({{wake_fd_.get(), POLLIN, 0}, {listen_fd_.get(), POLLIN, 0}});
-    for (const UniqueFd& client : clients) fds.push_back({client.get(), POLLIN, 0});
+    for (const TcpClient& client : clients) fds.push_back({client.fd.get(), POLLIN, 0});
     if (::poll(fds.data(), fds.size(), -1) == -1) continue;  // EINTR
     if (fds[0].revents) break;
+    const auto now = std::chrono::steady_clock::now();
     // One request per readable client per round, so a flooding client cannot starve the others.
     for (std::size_t i = clients.size(); i-- > 0;) {
       if (!fds[i + 2].revents) continue;
-      modbus_set_socket(context_.get(), clients[i].get());
+      clients[i].last_request = now;
+      modbus_set_socket(context_.get(), clients[i].fd.get());
       const bool keep = answer_one();
       modbus_set_socket(context_.get(), -1);
       if (!keep) {
         spdlog::debug("modbus server {}: dropped a client ({})", describe(), modbus_strerror(errno));
         clients.erase(clients.begin() + static_cast<std::ptrdiff_t>(i));
-        refusing = false;
+        evicting = false;
       }
     }
     if (!(fds[1].revents & POLLIN)) continue;
@@ -191,13 +215,15 @@ void ModbusServer::serve_tcp() {
     }
     cannot_accept = false;
     if (static_cast<int>(clients.size()) >= max_clients_) {
-      if (!std::exchange(refusing, true))
-        spdlog::warn("modbus server {}: refusing connections, {} clients already", describe(), max_clients_);
-      continue;  // closed by UniqueFd
+      // Refusing the newcomer would lock a rebooted PLC out for good: the connections its
+      // earlier lives left half-open never send again. The quietest client goes instead.
+      if (!std::exchange(evicting, true))
+        spdlog::warn("modbus server {}: {} clients already; closing the quietest for each new one", describe(),
+                     max_clients_);
+      clients.erase(std::ranges::min_element(clients, {}, &TcpClient::last_request));
     }
-    const int on = 1;
-    ::setsockopt(client.get(), IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);  // replies go out at once
-    clients.push_back(std::move(client));
+    set_client_options(client.get());
+    clients.push_back({std::move(client), now});
   }
 }
 

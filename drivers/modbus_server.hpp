@@ -32,7 +32,9 @@ class ModbusServer {
 
   /// Serves `input_registers` input and `holding_registers` holding registers at address 0.
   /// TCP: listens on endpoint.address:endpoint.port (port 0: any free port, see port()) and
-  /// serves up to max_clients connections at once. RTU: answers requests for endpoint.unit_id.
+  /// serves up to max_clients connections at once; a connection beyond that closes the client
+  /// whose last request is oldest (one left half-open by a rebooted PLC never sends again).
+  /// RTU: answers requests for endpoint.unit_id.
   /// Throws std::runtime_error when the port cannot be bound or the device opened.
   ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int input_registers, int holding_registers,
                Refresh refresh, Written written);

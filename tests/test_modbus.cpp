@@ -271,6 +271,17 @@ class RawConnection {
     }
     return bytes;
   }
+  /// True when the server closes the connection within `limit` (what it sent first is skipped).
+  bool closed_within(std::chrono::milliseconds limit) const {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < deadline) {
+      pollfd readable{fd_, POLLIN, 0};
+      if (::poll(&readable, 1, 10) != 1) continue;
+      std::uint8_t chunk[300];
+      if (::recv(fd_, chunk, sizeof chunk, 0) <= 0) return true;
+    }
+    return false;
+  }
 
  private:
   int fd_;
@@ -342,6 +353,32 @@ TEST_F(ModbusServerWithBystander, AnIllegalCountDoesNotHoldUpTheOtherClients) {
                              << std::chrono::duration_cast<std::chrono::milliseconds>(waited).count() << " ms";
     EXPECT_THAT(raw.receive(9, 2s), ::testing::ElementsAre(0x00, 0x02, 0x00, 0x00, 0x00, 0x03, 0x01, 0x84, 0x03));
   }
+}
+
+// A PLC that power-cycles leaves its connection half-open: it never sends again. Before, a
+// server full of those refused every new connection, the PLC's too, for ever.
+TEST(ModbusServer, AFullServerClosesTheQuietestClientForANewOne) {
+  ModbusServerOptions options = tcp_server_options();
+  options.max_clients = 3;
+  DriveControl control;
+  ModbusServerOutput output(options, kChannels, control);
+  const ModbusContext poller = tcp_master(output.port());
+  std::vector<std::unique_ptr<RawConnection>> silent;
+  for (int i = 0; i < 2; ++i) {
+    silent.push_back(std::make_unique<RawConnection>(output.port()));
+    std::this_thread::sleep_for(50ms);  // accepted in this order
+  }
+  EXPECT_EQ(read_input(poller.get(), map::kChannelCount, 1)[0], kChannelCount);  // the poller is the liveliest
+
+  // Each life of the PLC leaves its connection open and silent, as a power cut would.
+  std::vector<ModbusContext> plc_lives;
+  for (int reboot = 0; reboot < 3; ++reboot) {
+    plc_lives.push_back(tcp_master(output.port()));
+    EXPECT_EQ(read_input(plc_lives.back().get(), map::kChannelCount, 1)[0], kChannelCount) << "life " << reboot;
+    EXPECT_EQ(read_input(poller.get(), map::kChannelCount, 1)[0], kChannelCount) << "the poller was not closed";
+  }
+  for (std::size_t i = 0; i < silent.size(); ++i)
+    EXPECT_TRUE(silent[i]->closed_within(5s)) << "silent connection " << i;
 }
 
 TEST(ModbusServer, StopsPromptly) {
