@@ -12,6 +12,7 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/eventfd.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -35,12 +36,81 @@ constexpr int kAcceptRetryMs = 100;
 // found out after about a minute of silence instead of the kernel's two hours.
 constexpr int kKeepaliveIdleS = 30, kKeepaliveIntervalS = 10, kKeepaliveProbes = 3;
 
+using SteadyTime = std::chrono::steady_clock::time_point;
+
 /// A TCP client and when it last sent a request (or connected): a full server makes room
 /// by closing the quietest one.
 struct TcpClient {
+  TcpClient(UniqueFd connection, SteadyTime connected) : fd(std::move(connection)), last_request(connected) {}
   UniqueFd fd;
-  std::chrono::steady_clock::time_point last_request;
+  SteadyTime last_request;
+  std::optional<SteadyTime> incomplete_since;  // part of a request is in, since then
+  int low_water = 1;                           // the socket's SO_RCVLOWAT
 };
+
+// The MBAP header: transaction id, protocol id, length (of what follows it, unit id
+// included), unit id. A request's length is 2 (unit id, function code) to 254 (unit id and
+// the longest PDU, 253 bytes: an ADU of MODBUS_TCP_MAX_ADU_LENGTH).
+constexpr int kMbapLength = 7, kMbapLengthBefore = 6, kMinLengthField = 2, kMaxLengthField = 254;
+
+/// What the server thread does next with a client poll() woke it for.
+enum class Next { kWait, kAnswer, kDrop };
+
+/// Raises the socket's low-water mark to the bytes a request still needs, so that poll()
+/// wakes once it is complete rather than for every byte a slow client sends.
+void set_low_water(TcpClient& client, int bytes) {
+  if (client.low_water == bytes) return;
+  ::setsockopt(client.fd.get(), SOL_SOCKET, SO_RCVLOWAT, &bytes, sizeof bytes);
+  client.low_water = bytes;
+}
+
+/// Answer only a request that is in the socket whole, by its MBAP length field:
+/// modbus_receive() waits on its socket until the frame is complete, and the one server
+/// thread would serve nobody else meanwhile (a client sending a byte every 40 ms, under the
+/// byte timeout, held every other client, a reload and a stop for seconds).
+Next check_request(TcpClient& client, short revents, SteadyTime now) {
+  std::uint8_t header[kMbapLength];
+  const ssize_t peeked = ::recv(client.fd.get(), header, sizeof header, MSG_PEEK | MSG_DONTWAIT);
+  if (peeked == 0) {
+    errno = ECONNRESET;  // closed by the peer
+    return Next::kDrop;
+  }
+  if (peeked < 0)
+    return (errno == EAGAIN || errno == EINTR) && !(revents & (POLLHUP | POLLERR)) ? Next::kWait : Next::kDrop;
+  int needed = kMbapLength;
+  if (peeked == kMbapLength) {
+    const int length = (header[4] << 8) | header[5];
+    if (length < kMinLengthField || length > kMaxLengthField) {
+      errno = EMBBADDATA;
+      return Next::kDrop;
+    }
+    needed = kMbapLengthBefore + length;
+    int available = 0;
+    if (::ioctl(client.fd.get(), FIONREAD, &available) == -1) return Next::kDrop;
+    if (available >= needed) {
+      set_low_water(client, 1);  // libmodbus reads it, and the next request wakes poll()
+      client.incomplete_since.reset();
+      return Next::kAnswer;
+    }
+  }
+  if (revents & (POLLRDHUP | POLLHUP | POLLERR)) {
+    errno = ECONNRESET;  // the rest will never come
+    return Next::kDrop;
+  }
+  if (!client.incomplete_since) client.incomplete_since = now;
+  set_low_water(client, needed);
+  return Next::kWait;
+}
+
+/// poll()'s timeout: until the first incomplete request's time is up, -1 when there is none.
+int poll_timeout_ms(const std::vector<TcpClient>& clients, SteadyTime now) {
+  std::optional<SteadyTime> first;
+  for (const TcpClient& client : clients)
+    if (client.incomplete_since && (!first || *client.incomplete_since < *first)) first = client.incomplete_since;
+  if (!first) return -1;
+  const auto left = *first + std::chrono::milliseconds(ModbusServer::kRequestTimeoutMs) - now;
+  return static_cast<int>(std::max<std::int64_t>(0, std::chrono::ceil<std::chrono::milliseconds>(left).count()));
+}
 
 void set_client_options(int fd) {
   const int on = 1;
@@ -182,24 +252,40 @@ void ModbusServer::serve_tcp() {
   std::vector<pollfd> fds;
   bool evicting = false;       // log a full server once, not once per closed connection
   bool cannot_accept = false;  // and a process out of descriptors once
+  const auto drop = [&](std::size_t i, const char* why) {
+    spdlog::debug("modbus server {}: dropped a client ({})", describe(), why);
+    clients.erase(clients.begin() + static_cast<std::ptrdiff_t>(i));
+    evicting = false;
+  };
   while (!stopping_.load(std::memory_order_relaxed)) {
     fds.assign({{wake_fd_.get(), POLLIN, 0}, {listen_fd_.get(), POLLIN, 0}});
-    for (const TcpClient& client : clients) fds.push_back({client.fd.get(), POLLIN, 0});
-    if (::poll(fds.data(), fds.size(), -1) == -1) continue;  // EINTR
+    for (const TcpClient& client : clients) fds.push_back({client.fd.get(), POLLIN | POLLRDHUP, 0});
+    if (::poll(fds.data(), fds.size(), poll_timeout_ms(clients, std::chrono::steady_clock::now())) == -1)
+      continue;  // EINTR
     if (fds[0].revents) break;
     const auto now = std::chrono::steady_clock::now();
     // One request per readable client per round, so a flooding client cannot starve the others.
     for (std::size_t i = clients.size(); i-- > 0;) {
-      if (!fds[i + 2].revents) continue;
-      clients[i].last_request = now;
-      modbus_set_socket(context_.get(), clients[i].fd.get());
-      const bool keep = answer_one();
-      modbus_set_socket(context_.get(), -1);
-      if (!keep) {
-        spdlog::debug("modbus server {}: dropped a client ({})", describe(), modbus_strerror(errno));
-        clients.erase(clients.begin() + static_cast<std::ptrdiff_t>(i));
-        evicting = false;
+      TcpClient& client = clients[i];
+      if (fds[i + 2].revents) {
+        const Next next = check_request(client, fds[i + 2].revents, now);
+        if (next == Next::kDrop) {
+          drop(i, modbus_strerror(errno));
+          continue;
+        }
+        if (next == Next::kAnswer) {
+          client.last_request = now;
+          modbus_set_socket(context_.get(), client.fd.get());
+          const bool keep = answer_one();
+          modbus_set_socket(context_.get(), -1);
+          if (!keep) {
+            drop(i, modbus_strerror(errno));
+            continue;
+          }
+        }
       }
+      if (client.incomplete_since && now - *client.incomplete_since >= std::chrono::milliseconds(kRequestTimeoutMs))
+        drop(i, "a request still incomplete");
     }
     if (!(fds[1].revents & POLLIN)) continue;
     UniqueFd client(::accept4(listen_fd_.get(), nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK));
@@ -223,7 +309,7 @@ void ModbusServer::serve_tcp() {
       clients.erase(std::ranges::min_element(clients, {}, &TcpClient::last_request));
     }
     set_client_options(client.get());
-    clients.push_back({std::move(client), now});
+    clients.emplace_back(std::move(client), now);
   }
 }
 

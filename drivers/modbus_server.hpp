@@ -7,7 +7,8 @@
 // writes to holding registers before the acknowledgement goes out, so a master that has its
 // acknowledgement knows the owner has seen the write. Out-of-range addresses, unknown function codes and
 // bad counts get Modbus exception responses from libmodbus; a TCP client that sends something
-// unparseable is disconnected without disturbing the others.
+// unparseable, or a request too slowly (kRequestTimeoutMs), is disconnected without disturbing
+// the others.
 #pragma once
 
 #include "drivers/modbus_link.hpp"
@@ -50,9 +51,15 @@ class ModbusServer {
   /// False after the serial line failed (unplugged adapter); the server reopens it by itself.
   bool healthy() const { return healthy_.load(std::memory_order_relaxed); }
 
-  /// How long a request may take to arrive completely once its first byte is there: bounds
-  /// how long one slow or broken peer holds up the others and how long destruction waits.
+  /// How long libmodbus waits for the rest of a frame: on RTU once its first byte is there;
+  /// on TCP only for a request whose PDU claims more than its MBAP length (it reads a request
+  /// once the length is in). Bounds how long a broken peer holds up the others and how long
+  /// destruction waits.
   static constexpr int kByteTimeoutMs = 50;
+  /// TCP: how long a request may take to arrive whole once part of it is in. A request is
+  /// read only when it is complete, so a slow client holds up nobody else; one still short
+  /// of its length after this long is disconnected.
+  static constexpr int kRequestTimeoutMs = 500;
 
  private:
   void serve_tcp();

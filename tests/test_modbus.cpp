@@ -271,6 +271,8 @@ class RawConnection {
     }
     return bytes;
   }
+  /// One byte; false once the server has closed the connection.
+  bool try_send(std::uint8_t byte) const { return ::send(fd_, &byte, 1, MSG_NOSIGNAL) == 1; }
   /// True when the server closes the connection within `limit` (what it sent first is skipped).
   bool closed_within(std::chrono::milliseconds limit) const {
     const auto deadline = std::chrono::steady_clock::now() + limit;
@@ -379,6 +381,50 @@ TEST(ModbusServer, AFullServerClosesTheQuietestClientForANewOne) {
   }
   for (std::size_t i = 0; i < silent.size(); ++i)
     EXPECT_TRUE(silent[i]->closed_within(5s)) << "silent connection " << i;
+}
+
+// libmodbus reads a request until it is complete, waiting up to its byte timeout (50 ms) for
+// each byte: a client sending one every 40 ms held the one server thread, every other client
+// with it, for the whole request (10 s for a long function 16).
+TEST_F(ModbusServerWithBystander, ASlowRequestDoesNotHoldUpTheOtherClientsAndIsDropped) {
+  RawConnection dribbler(output.port());
+  // Function 16, 123 registers: 259 bytes, 10 s at one byte per 40 ms.
+  std::vector<std::uint8_t> request(7 + 6 + 2 * 123, 0x01);
+  const std::uint8_t header[] = {0x00, 0x07, 0x00, 0x00, 0x00, 7 + 2 * 123, 0x01, 0x10, 0x00, 100, 0x00, 123, 2 * 123};
+  std::ranges::copy(header, request.begin());
+  std::atomic<bool> refused{false};
+  std::thread slow([&] {
+    const auto until = std::chrono::steady_clock::now() + 4s;
+    for (std::size_t i = 0; i < request.size() && std::chrono::steady_clock::now() < until; ++i) {
+      if (!dribbler.try_send(request[i])) {
+        refused = true;
+        return;
+      }
+      std::this_thread::sleep_for(40ms);
+    }
+  });
+  for (int i = 0; i < 40; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    EXPECT_EQ(read_input(bystander.get(), map::kFirstChannel, 1)[0], 300);
+    const auto waited = std::chrono::steady_clock::now() - start;
+    EXPECT_LT(waited, 1s) << "request " << i << " waited "
+                          << std::chrono::duration_cast<std::chrono::milliseconds>(waited).count() << " ms";
+    std::this_thread::sleep_for(50ms);
+  }
+  slow.join();
+  EXPECT_TRUE(refused) << "the slow client was not dropped";
+}
+
+// The MBAP length counts the unit id and the PDU: 2 to 254. Anything else cannot be a request
+// and its end cannot be found; libmodbus ignored it and parsed the PDU regardless.
+TEST_F(ModbusServerWithBystander, AnImpossibleLengthDropsTheClient) {
+  for (const std::uint8_t length_high : {0x00, 0x01}) {
+    RawConnection raw(output.port());
+    const std::uint8_t length_low = length_high == 0 ? 1 : 0xFF;  // 1, 511
+    raw.send({0x00, 0x09, 0x00, 0x00, length_high, length_low, 0x01, 0x04, 0x00, 0x10, 0x00, 0x01});
+    EXPECT_TRUE(raw.closed_within(5s)) << "length " << (length_high << 8 | length_low);
+  }
+  EXPECT_EQ(read_input(bystander.get(), map::kFirstChannel, 1)[0], 300);
 }
 
 TEST(ModbusServer, StopsPromptly) {
