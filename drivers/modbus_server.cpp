@@ -53,6 +53,24 @@ struct TcpClient {
 // the longest PDU, 253 bytes: an ADU of MODBUS_TCP_MAX_ADU_LENGTH).
 constexpr int kMbapLength = 7, kMbapLengthBefore = 6, kMinLengthField = 2, kMaxLengthField = 254;
 
+/// The functions of docs/modbus-register-map.md: the registers', and the bits' (answered with
+/// exception 2: the map has no coils or discrete inputs).
+bool in_the_map(int function) {
+  switch (function) {
+    case MODBUS_FC_READ_COILS:
+    case MODBUS_FC_READ_DISCRETE_INPUTS:
+    case MODBUS_FC_READ_HOLDING_REGISTERS:
+    case MODBUS_FC_READ_INPUT_REGISTERS:
+    case MODBUS_FC_WRITE_SINGLE_COIL:
+    case MODBUS_FC_WRITE_SINGLE_REGISTER:
+    case MODBUS_FC_WRITE_MULTIPLE_COILS:
+    case MODBUS_FC_WRITE_MULTIPLE_REGISTERS:
+    case MODBUS_FC_MASK_WRITE_REGISTER:
+    case MODBUS_FC_WRITE_AND_READ_REGISTERS: return true;
+    default: return false;
+  }
+}
+
 /// What the server thread does next with a client poll() woke it for.
 enum class Next { kWait, kAnswer, kDrop };
 
@@ -236,6 +254,13 @@ bool ModbusServer::answer_one() {
   const int length = modbus_receive(context, query_.data());
   if (length == -1) return false;
   if (length == 0) return true;  // RTU: addressed to another unit
+  if (endpoint_.transport == ModbusEndpoint::Transport::kTcp) skip_rest_of_request(length);
+  if (!in_the_map(query_[static_cast<std::size_t>(modbus_get_header_length(context))])) {
+    // libmodbus answers more than the map lists (report server id with its own version
+    // string); the map promises exception 1 for those. A broadcast gets no answer.
+    if (endpoint_.transport == ModbusEndpoint::Transport::kRtu && query_[0] == MODBUS_BROADCAST_ADDRESS) return true;
+    return modbus_reply_exception(context, query_.data(), MODBUS_EXCEPTION_ILLEGAL_FUNCTION) != -1;
+  }
   refresh_({mapping_->tab_input_registers, static_cast<std::size_t>(mapping_->nb_input_registers)},
            {mapping_->tab_registers, static_cast<std::size_t>(mapping_->nb_registers)});
   std::array<std::uint16_t, MODBUS_MAX_WRITE_REGISTERS> values;
@@ -244,6 +269,13 @@ bool ModbusServer::answer_one() {
                        {mapping_->tab_registers, static_cast<std::size_t>(mapping_->nb_registers)}, values))
     written_(write->address, write->values);
   return modbus_reply(context, query_.data(), length, mapping_.get()) != -1;
+}
+
+void ModbusServer::skip_rest_of_request(int length) {
+  const int whole = kMbapLengthBefore + ((query_[4] << 8) | query_[5]);  // all in the socket: check_request()
+  if (length >= whole) return;
+  [[maybe_unused]] const ssize_t skipped = ::recv(modbus_get_socket(context_.get()), query_.data() + length,
+                                                  static_cast<std::size_t>(whole - length), MSG_DONTWAIT);
 }
 
 void ModbusServer::serve_tcp() {

@@ -5,8 +5,9 @@
 // The owner's callbacks run on that thread: `refresh` fills the mapping before every request
 // is answered, so a reply always shows the newest state; `written` reports what a request
 // writes to holding registers before the acknowledgement goes out, so a master that has its
-// acknowledgement knows the owner has seen the write. Out-of-range addresses, unknown function codes and
-// bad counts get Modbus exception responses from libmodbus; a TCP client that sends something
+// acknowledgement knows the owner has seen the write. Out-of-range addresses and bad counts get
+// Modbus exception responses from libmodbus, function codes the register map does not list
+// exception 1 (illegal function) from the server; a TCP client that sends something
 // unparseable, or a request too slowly (kRequestTimeoutMs), is disconnected without disturbing
 // the others.
 #pragma once
@@ -67,6 +68,10 @@ class ModbusServer {
   /// Reads one request from the context's current socket and answers it. False when the
   /// peer is gone or sent something that is not a request (the connection is then dropped).
   bool answer_one();
+  /// TCP: reads what is left of a request whose MBAP length is longer than the PDU libmodbus
+  /// parsed (`length` bytes; a function it does not know is read to its code alone), so that
+  /// the tail is not taken for the next request.
+  void skip_rest_of_request(int length);
   /// Blocks until `fd` is readable or stop; the poll result for `fd`, 0 on stop.
   short wait_readable(int fd, int timeout_ms);
 

@@ -339,6 +339,20 @@ TEST_F(ModbusServerWithBystander, GarbageAndBadRequestsGetExceptionsAndOthersAre
   EXPECT_TRUE(stalled.receive(1, 1s).empty()) << "a half request gets no answer";
 }
 
+// The map lists functions 1-6, 15, 16, 22 and 23; libmodbus answers report server id (0x11)
+// itself, with its version string. The others get exception 1, and the rest of a request
+// libmodbus does not parse (0x2B's MEI type and object id) is not taken for the next one.
+TEST_F(ModbusServerWithBystander, FunctionsTheMapDoesNotListGetIllegalFunction) {
+  RawConnection raw(output.port());
+  raw.send({0x00, 0x05, 0x00, 0x00, 0x00, 0x05, 0x01, 0x2B, 0x0E, 0x01, 0x00});  // read device identification
+  EXPECT_THAT(raw.receive(9, 2s), ::testing::ElementsAre(0x00, 0x05, 0x00, 0x00, 0x00, 0x03, 0x01, 0xAB, 0x01));
+  raw.send({0x00, 0x06, 0x00, 0x00, 0x00, 0x02, 0x01, 0x11});  // report server id
+  EXPECT_THAT(raw.receive(9, 2s), ::testing::ElementsAre(0x00, 0x06, 0x00, 0x00, 0x00, 0x03, 0x01, 0x91, 0x01));
+  std::uint8_t id[MODBUS_MAX_PDU_LENGTH];
+  EXPECT_EQ(exception_of(modbus_report_slave_id(bystander.get(), sizeof id, id)), EMBXILFUN);
+  EXPECT_EQ(read_input(bystander.get(), map::kFirstChannel, 1)[0], 300);
+}
+
 // libmodbus sleeps its response timeout (500 ms by default) before it answers a request with
 // an illegal count, on the one server thread: fuzz_modbus ran at one input a second. The
 // server sets that sleep to nothing on TCP, so the other clients are not held up.
