@@ -363,6 +363,24 @@ TEST_F(ConfigTest, ChannelAndOutputMistakesNameTheKey) {
   EXPECT_THAT(error(), HasSubstr(at + "performer.name: performer name"));
 }
 
+// libmodbus takes numeric IPv4 addresses only: "localhost" passed, then the server listened on
+// 255.255.255.255 and the client never reached its slave. A name is resolved at load.
+TEST_F(ConfigTest, ModbusHostNamesResolveToANumericAddressOrNameTheKey) {
+  const std::string at = file_.string() + ": key ";
+  write("", std::string(kJawChannel) +
+                "[[outputs.modbus_server]]\naddress = \"localhost\"\n"
+                "[[outputs.modbus_client]]\naddress = \"localhost\"\nport = 1503\n"
+                "[[outputs.modbus_server]]\ntransport = \"rtu\"\naddress = \"not looked up for rtu.invalid\"\n");
+  const Config config = load_config(file_);
+  EXPECT_EQ(config.outputs.modbus_servers[0].link.address, "127.0.0.1");
+  EXPECT_EQ(config.outputs.modbus_clients[0].link.address, "127.0.0.1");
+  write("", "[[outputs.modbus_server]]\naddress = \"no-such-host.invalid\"");
+  EXPECT_THAT(error(),
+              HasSubstr(at + "outputs.modbus_server[0].address: host \"no-such-host.invalid\" does not resolve"));
+  write("", std::string(kJawChannel) + "[[outputs.modbus_client]]\naddress = \"::1\"");
+  EXPECT_THAT(error(), HasSubstr(at + "outputs.modbus_client[0].address: host \"::1\" has no IPv4 address"));
+}
+
 TEST_F(ConfigTest, DmxFootprintMistakesNameTheKey) {
   const std::string at = file_.string() + ": key ";
   const std::string channels = std::string(kJawChannel) + "[[channels]]\nname = \"lips\"\n";

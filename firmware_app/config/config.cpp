@@ -10,6 +10,8 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include <arpa/inet.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
@@ -416,12 +418,31 @@ SerialPortSettings read_serial_line(Section& section, std::string_view default_d
   return line;
 }
 
+/// libmodbus's TCP contexts take a numeric IPv4 address alone: a name (inet_addr() makes it
+/// INADDR_NONE) had the server listen on 255.255.255.255 and the client fail with "Network is
+/// unreachable" for ever. A name is resolved now, once, as the OSC host is.
+std::string numeric_ipv4(Section& section, std::string_view key, const std::string& host, int port) {
+  UdpEndpoint found;
+  try {
+    found = resolve_udp(host, port);
+  } catch (const UdpError& e) {
+    section.fail(key, e.what());
+  }
+  if (found.address.ss_family != AF_INET)
+    section.fail(key, fmt::format("host \"{}\" has no IPv4 address (Modbus TCP takes IPv4 only)", host));
+  char numeric[INET_ADDRSTRLEN] = {};
+  ::inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(&found.address)->sin_addr, numeric, sizeof numeric);
+  return numeric;
+}
+
 ModbusEndpoint read_modbus_link(Section& section) {
   ModbusEndpoint link;
   link.transport = section.one_of("transport", "tcp", {"tcp", "rtu"}) == "tcp" ? ModbusEndpoint::Transport::kTcp
                                                                                : ModbusEndpoint::Transport::kRtu;
   link.address = section.string("address", link.address);
   link.port = section.integer("port", link.port, 1, 65535);
+  if (link.transport == ModbusEndpoint::Transport::kTcp)
+    link.address = numeric_ipv4(section, "address", link.address, link.port);
   link.line = read_serial_line(section, kDefaultRtuDevice);
   link.unit_id = section.integer("unit_id", link.unit_id, 1, 247);
   return link;
