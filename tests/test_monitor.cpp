@@ -490,6 +490,12 @@ TEST(MonitorHttp, CommandsAreRefusedWithoutTheTokenAndCarriedOutWithIt) {
   EXPECT_THAT(raw_exchange(daemon.port, "POST /api/calibrate HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n"
                                         "4\r\nabcd\r\n0\r\n\r\n"),
               ::testing::StartsWith("HTTP/1.1 413"));
+  // So is a request for byte ranges: one range asked for 700 times came back as 700 parts.
+  std::string ranges = "GET / HTTP/1.1\r\nHost: x\r\n";
+  for (int i = 0; i < 700; ++i) ranges += "Range: bytes=0-40000\r\n";
+  const std::string ranged = raw_exchange(daemon.port, ranges + "\r\n");
+  EXPECT_THAT(ranged, ::testing::StartsWith("HTTP/1.1 416"));
+  EXPECT_LT(ranged.size(), 1000u);
 
   // Calibrate: the request is counted at once, the neutral capture completes on tracked frames.
   EXPECT_EQ(post(c, "/api/calibrate", kToken), 200);

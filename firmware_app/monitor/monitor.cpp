@@ -234,6 +234,13 @@ void Monitor::add_routes() {
       response.set_content("the monitor takes no request body\n", "text/plain");
       return httplib::Server::HandlerResponse::Handled;
     }
+    // Byte ranges: httplib would answer a request for the same range many times over with a
+    // part for each (a 5.6 KB request got 28 MB), and nothing on the page asks for one.
+    if (request.has_header("Range")) {
+      response.status = 416;
+      response.set_content("the monitor serves whole responses only\n", "text/plain");
+      return httplib::Server::HandlerResponse::Handled;
+    }
     if (std::this_thread::get_id() != listener_id_.load()) return httplib::Server::HandlerResponse::Unhandled;
     counters_.turned_away.fetch_add(1, std::memory_order_relaxed);
     response.status = 503;
