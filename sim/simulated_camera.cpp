@@ -4,6 +4,7 @@
 #include "drivers/clock.hpp"
 
 #include <opencv2/core.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <array>
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <ctime>
 #include <system_error>
+#include <utility>
 
 namespace lipdrive {
 namespace {
@@ -108,6 +110,7 @@ double SimulatedCamera::duration_s() const {
 
 void SimulatedCamera::rewind() {
   position_ = 0;
+  damaged_pass_ = false;
   last_index_ = -1;
   // The next pass begins a pass's length after this one (where the sound loops), and never
   // before the slot after the last frame delivered (a file whose length falls short of it).
@@ -233,10 +236,18 @@ GrabStatus SimulatedCamera::read_frame(Frame& frame) {
 
 GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
   if (!video_->read(gray_, cr_)) {
-    if (video_->damage().empty()) return GrabStatus::kEndOfStream;
+    if (video_->damage().empty() || damaged_pass_) return GrabStatus::kEndOfStream;
     last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(video_->frame_index() + 1) + ": " +
                   video_->damage() + " (the file is damaged or truncated)";
-    ended_ = true;  // nothing after the damage is readable, so the replay ends here
+    // Nothing after the damage is readable: the replay ends here, or a looping one (the daemon's)
+    // starts over at its first frame, said once in the log.
+    if (options_.loop) {
+      damaged_pass_ = true;
+      if (!std::exchange(damage_logged_, true))
+        spdlog::warn("{}; the replay loops over the frames before it", *last_error_);
+    } else {
+      ended_ = true;
+    }
     return GrabStatus::kCorrupt;
   }
   show(video_->orientation(), frame);

@@ -130,6 +130,8 @@ class SimulatedCamera : public FrameSource {
   GrabStatus next_status_ = GrabStatus::kFrame;
   bool held_ = false;
   bool ended_ = false;
+  bool damaged_pass_ = false;         // a looping replay met the file's damage in this pass
+  bool damage_logged_ = false;        // and said so
   std::int64_t start_ns_ = 0;         // real-time pacing: deadline of frame n = start + n * period
   // Real-time pacing at a video's own rate: the frame read last is due at its own time, this far
   // from its slot's (a variable-rate clip's frames are not a period apart).

@@ -357,6 +357,27 @@ TEST_F(SimulatedCameraTest, ATruncatedVideoYieldsFramesThenCorruptThenEnd) {
   EXPECT_EQ(camera.grab(frame, kLongTimeout), GrabStatus::kEndOfStream);
 }
 
+// A looping replay (the daemon's) of a damaged file goes on over the frames before the damage:
+// one corrupt frame where it is met, then the first frame again, pass after pass.
+TEST_F(SimulatedCameraTest, ALoopingReplayOfATruncatedVideoStartsOverAtItsDamage) {
+  const auto path = write_video(kFrames);
+  fs::resize_file(path, fs::file_size(path) / 2);
+  SimulatedCamera camera({.input = path, .loop = true});
+  Frame frame;
+  int corrupt = 0, frames = 0;
+  std::uint64_t last_sequence = 0;
+  for (int i = 0; i < 3 * kFrames; ++i) {
+    const GrabStatus status = camera.grab(frame, kLongTimeout);
+    ASSERT_NE(status, GrabStatus::kEndOfStream) << "grab " << i;
+    corrupt += status == GrabStatus::kCorrupt;
+    if (status != GrabStatus::kFrame) continue;
+    if (frames++ > 0) EXPECT_GT(frame.sequence, last_sequence);
+    last_sequence = frame.sequence;
+  }
+  EXPECT_GE(corrupt, 2) << "the damage met in each pass";
+  EXPECT_GT(frames, 2 * corrupt);
+}
+
 // What is shown of a clip is its picture: sound running on after the last frame, or frames an
 // MP4's edit list leaves unshown (a cut with -c copy between keyframes), are not damage.
 TEST_F(SimulatedCameraTest, AVideoWhoseSoundOutlastsItsPictureEndsCleanly) {
