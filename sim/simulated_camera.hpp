@@ -60,7 +60,7 @@ class SimulatedCamera : public FrameSource {
 
   /// Delivers the next frame. A video whose reading ends in damage (VideoFile::damage(): a
   /// file cut short, not one whose sound outlasts its picture) yields kCorrupt once (details
-  /// in last_error()), then ends; an undecodable image inside a folder yields kCorrupt for
+  /// in last_error()), then ends (looping: starts over, a kCorrupt in every pass); an undecodable image inside a folder yields kCorrupt for
   /// that frame only. In real time, kTimeout when the next frame is due later than `timeout`.
   GrabStatus grab(Frame& frame, std::chrono::milliseconds timeout) override;
   double frame_rate() const override { return frame_rate_; }
