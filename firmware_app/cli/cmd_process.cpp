@@ -14,7 +14,6 @@
 #include "core/voice_training.hpp"
 #include "drivers/audio_file.hpp"
 #include "drivers/clock.hpp"
-#include "firmware_app/cli/blocked_signals.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/cli/recording.hpp"
@@ -34,8 +33,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <condition_variable>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
@@ -256,6 +257,34 @@ void decode_all(SimulatedCamera& camera, Rotation rotation, FrameRing& ring) {
   }
 }
 
+/// The run's temporary --out file, for end_without_temporary() (empty: none).
+char temporary_file[PATH_MAX] = {};
+
+/// Ctrl-C, a kill or a closed terminal ends the run where it stands, as the signal's default
+/// action does, and takes the temporary file with it: the output stays as it was. (unlink()
+/// and raise() are async-signal-safe; the signal, blocked while its handler runs, acts as the
+/// handler returns.)
+extern "C" void end_without_temporary(int signal) {
+  if (temporary_file[0] != '\0') ::unlink(temporary_file);
+  ::signal(signal, SIG_DFL);
+  ::raise(signal);
+}
+
+/// Installs end_without_temporary() for SIGINT, SIGTERM and SIGHUP, but not for one this process
+/// was told to ignore (nohup's SIGHUP, the SIGINT of a shell's background job).
+void end_signals_without(const std::filesystem::path& temporary) {
+  if (temporary.empty() || temporary.native().size() >= sizeof temporary_file) return;
+  std::memcpy(temporary_file, temporary.c_str(), temporary.native().size() + 1);
+  struct sigaction action {};
+  action.sa_handler = end_without_temporary;
+  sigemptyset(&action.sa_mask);
+  for (const int signal : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction before {};
+    if (::sigaction(signal, nullptr, &before) == 0 && before.sa_handler != SIG_IGN)
+      ::sigaction(signal, &action, nullptr);
+  }
+}
+
 /// Per-stage latencies for --stats.
 struct StageTimes {
   std::vector<double> decode, landmarks, fit, measures;
@@ -285,9 +314,6 @@ Config config_for(const ProcessOptions& options) {
 }
 
 void run_process(const ProcessOptions& options) {
-  // Ctrl-C, a kill or a closed terminal ends the run between two frames like an error does: the
-  // output file as it was, no temporary file left beside it.
-  const BlockedSignals interrupts({SIGINT, SIGTERM, SIGHUP});
   const auto timecode = timecode_start(options);
   SimulatedCamera camera = open_recording(options.input);
   Config config = config_for(options);
@@ -311,7 +337,10 @@ void run_process(const ProcessOptions& options) {
   // The rows replace the file only once written: a mistake in an input, an error before the
   // first row or a process stopped halfway leaves the file as it was (FileReplacement).
   std::optional<FileReplacement> file;
-  if (!options.out.empty()) file.emplace(options.out);
+  if (!options.out.empty()) {
+    file.emplace(options.out);
+    end_signals_without(file->temporary());
+  }
   std::ostream& out = file ? file->stream() : std::cout;
   if (timecode)
     out << "# timecode_start " << format_frame(timecode->first, timecode->second).view() << " at "
@@ -338,10 +367,6 @@ void run_process(const ProcessOptions& options) {
   const std::unique_ptr<std::thread, decltype(stop_decoder)> decoder_guard(&decoder, stop_decoder);
 
   for (;;) {
-    if (const int signal = interrupts.take())
-      throw CommandError(fmt::format("{}: stopped by {} after {} frames{}", options.input.string(), strsignal(signal),
-                                     rows, file ? fmt::format("; {} left as it was", options.out.string()) : ""),
-                         128 + signal);
     DecodedFrame& frame = ring.oldest();
     if (frame.kind == DecodedFrame::Kind::kEnd) break;
     if (frame.kind == DecodedFrame::Kind::kError) {

@@ -4,7 +4,6 @@
 // no handler runs in the middle of a frame: SIGHUP reloads the configuration, SIGUSR1
 // re-captures the performer's neutral pose, SIGTERM and SIGINT stop cleanly (neutral pose on
 // every output, threads joined) well within a second.
-#include "firmware_app/cli/blocked_signals.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
 #include "firmware_app/config/config.hpp"
@@ -37,8 +36,11 @@ std::chrono::microseconds watchdog_interval() {
 }
 
 int run_daemon(RunOptions options) {
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (int signal : {SIGHUP, SIGTERM, SIGINT, SIGUSR1}) sigaddset(&signals, signal);
   // Before any thread starts, so that every thread inherits the mask.
-  const BlockedSignals signals({SIGHUP, SIGTERM, SIGINT, SIGUSR1});
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   options.daemon.watchdog_interval = watchdog_interval();
   // One control token for the process, so that the monitor's link stays valid across reloads.
@@ -58,7 +60,7 @@ int run_daemon(RunOptions options) {
   // Short enough to notice --frames, an ended recording and a record request promptly.
   const timespec poll{0, 50'000'000};
   for (;;) {
-    const int signal = signals.take(poll);
+    const int signal = sigtimedwait(&signals, nullptr, &poll);
     if (signal == SIGTERM || signal == SIGINT) {
       spdlog::info("{}: stopping", strsignal(signal));
       break;

@@ -35,6 +35,8 @@ class FileReplacement {
   FileReplacement& operator=(const FileReplacement&) = delete;
 
   std::ostream& stream() { return out_; }
+  /// The temporary file written until commit(); empty when `path` is written straight through.
+  const std::filesystem::path& temporary() const { return temp_; }
   /// Checks that everything was written (a full disk), then renames.
   void commit();
 
