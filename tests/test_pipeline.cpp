@@ -342,23 +342,24 @@ std::unique_ptr<Pipeline> replaying(const SimulatedCameraOptions::FaultInjection
   return std::make_unique<Pipeline>(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
 }
 
-/// An output whose publish() blocks once, for `block`, from its 30th frame on: a serial adapter
-/// that hangs the output thread in its open, a log that stopped being read.
+/// An output whose publish() blocks once, for `block`, the first time it is called after arm():
+/// a serial adapter that hangs the output thread in its open, a log that stopped being read.
 class StuckOutput : public Output {
  public:
   explicit StuckOutput(std::chrono::milliseconds block) : block_(block) {}
   void publish(const DriveFrame&) override {
-    if (++count_ != 30) return;
+    if (!armed_.exchange(false)) return;
     stuck_at = std::chrono::steady_clock::now();
     std::this_thread::sleep_for(block_);
     freed_at = std::chrono::steady_clock::now();
   }
   std::string describe() const override { return "stuck output"; }
+  void arm() { armed_ = true; }
   std::atomic<std::chrono::steady_clock::time_point> stuck_at{}, freed_at{};
 
  private:
   std::chrono::milliseconds block_;
-  int count_ = 0;
+  std::atomic<bool> armed_{false};
 };
 
 // A stuck output thread holds every output at its last values; the processing thread goes on,
@@ -375,14 +376,16 @@ TEST_F(PipelineTest, AStuckOutputThreadStopsTheWatchdogsPings) {
   settings.watchdog_interval = 50ms;
   DriveControl control;
   Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), settings, control);
-  StuckOutput output(2500ms);
+  StuckOutput output(4000ms);
   pipeline.add_output(output);
   pipeline.start();
   using Clock = std::chrono::steady_clock;
   std::vector<Clock::time_point> pings;
+  bool armed = false;
   const auto deadline = Clock::now() + 60s;
   while (Clock::now() < deadline) {
     if (notify.receive(50ms).find("WATCHDOG=1") != std::string::npos) pings.push_back(Clock::now());
+    if (!pings.empty() && !std::exchange(armed, true)) output.arm();  // stuck once the watchdog is fed
     const Clock::time_point freed = output.freed_at;
     if (freed != Clock::time_point{} && !pings.empty() && pings.back() > freed) break;
   }
@@ -395,7 +398,8 @@ TEST_F(PipelineTest, AStuckOutputThreadStopsTheWatchdogsPings) {
     return std::count_if(pings.begin(), pings.end(), [&](Clock::time_point t) { return t > from && t < to; });
   };
   EXPECT_GT(count_between(Clock::time_point{}, stuck), 0) << "fed before";
-  EXPECT_EQ(count_between(stuck + 1200ms, freed), 0) << "not fed while the output thread is stuck";
+  // The pings stop a second into it (read here a little later than sent).
+  EXPECT_EQ(count_between(stuck + 2000ms, freed), 0) << "not fed while the output thread is stuck";
   EXPECT_GT(count_between(freed, Clock::time_point::max()), 0) << "fed again once it comes round";
 }
 
