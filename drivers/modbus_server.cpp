@@ -333,12 +333,19 @@ void ModbusServer::serve_tcp() {
     }
     cannot_accept = false;
     if (static_cast<int>(clients.size()) >= max_clients_) {
-      // Refusing the newcomer would lock a rebooted PLC out for good: the connections its
-      // earlier lives left half-open never send again. The quietest client goes instead.
+      // Refusing every newcomer would lock a rebooted PLC out for good: the connections its
+      // earlier lives left half-open never send again. The quietest client goes instead, if it
+      // has been quiet for kQuietBeforeClosingMs: a client that polls keeps its place, so that
+      // a tool or a port scan connecting cannot take it, nor two clients take turns.
+      const auto quietest = std::ranges::min_element(clients, {}, &TcpClient::last_request);
+      const bool quiet = now - quietest->last_request >= std::chrono::milliseconds(kQuietBeforeClosingMs);
       if (!std::exchange(evicting, true))
-        spdlog::warn("modbus server {}: {} clients already; closing the quietest for each new one", describe(),
-                     max_clients_);
-      clients.erase(std::ranges::min_element(clients, {}, &TcpClient::last_request));
+        spdlog::warn(
+            "modbus server {}: {} clients already; a new one takes the place of one quiet for {} s, or is "
+            "refused",
+            describe(), max_clients_, kQuietBeforeClosingMs / 1000);
+      if (!quiet) continue;  // refused: closed by UniqueFd
+      clients.erase(quietest);
     }
     set_client_options(client.get());
     clients.emplace_back(std::move(client), now);

@@ -35,7 +35,8 @@ class ModbusServer {
   /// Serves `input_registers` input and `holding_registers` holding registers at address 0.
   /// TCP: listens on endpoint.address:endpoint.port (port 0: any free port, see port()) and
   /// serves up to max_clients connections at once; a connection beyond that closes the client
-  /// whose last request is oldest (one left half-open by a rebooted PLC never sends again).
+  /// whose last request is oldest if that was kQuietBeforeClosingMs ago or more (one left
+  /// half-open by a rebooted PLC never sends again), else it is refused.
   /// RTU: answers requests for endpoint.unit_id.
   /// Throws std::runtime_error when the port cannot be bound or the device opened.
   ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int input_registers, int holding_registers,
@@ -61,6 +62,9 @@ class ModbusServer {
   /// read only when it is complete, so a slow client holds up nobody else; one still short
   /// of its length after this long is disconnected.
   static constexpr int kRequestTimeoutMs = 500;
+  /// TCP: how long a client must have sent no request before a newcomer to a full server may
+  /// take its place.
+  static constexpr int kQuietBeforeClosingMs = 2000;
 
  private:
   void serve_tcp();

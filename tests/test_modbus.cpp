@@ -385,16 +385,31 @@ TEST(ModbusServer, AFullServerClosesTheQuietestClientForANewOne) {
     std::this_thread::sleep_for(50ms);  // accepted in this order
   }
   EXPECT_EQ(read_input(poller.get(), map::kChannelCount, 1)[0], kChannelCount);  // the poller is the liveliest
+  const auto quiet_for_long_enough = [] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(ModbusServer::kQuietBeforeClosingMs + 200));
+  };
 
-  // Each life of the PLC leaves its connection open and silent, as a power cut would.
+  // Each life of the PLC leaves its connection open and silent, as a power cut would; the next
+  // comes up a little later.
   std::vector<ModbusContext> plc_lives;
   for (int reboot = 0; reboot < 3; ++reboot) {
+    quiet_for_long_enough();
+    EXPECT_EQ(read_input(poller.get(), map::kChannelCount, 1)[0], kChannelCount) << "the poller was not closed";
     plc_lives.push_back(tcp_master(output.port()));
     EXPECT_EQ(read_input(plc_lives.back().get(), map::kChannelCount, 1)[0], kChannelCount) << "life " << reboot;
-    EXPECT_EQ(read_input(poller.get(), map::kChannelCount, 1)[0], kChannelCount) << "the poller was not closed";
   }
   for (std::size_t i = 0; i < silent.size(); ++i)
     EXPECT_TRUE(silent[i]->closed_within(5s)) << "silent connection " << i;
+
+  // Every place taken by a client that asked within the last 2 s: a newcomer is refused, and
+  // the poller keeps its place.
+  EXPECT_EQ(read_input(plc_lives.back().get(), map::kChannelCount, 1)[0], kChannelCount);
+  EXPECT_EQ(read_input(plc_lives[1].get(), map::kChannelCount, 1)[0], kChannelCount);
+  EXPECT_EQ(read_input(poller.get(), map::kChannelCount, 1)[0], kChannelCount);
+  const ModbusContext newcomer = tcp_master(output.port());
+  std::uint16_t word = 0;
+  EXPECT_EQ(modbus_read_input_registers(newcomer.get(), map::kChannelCount, 1, &word), -1) << "refused";
+  EXPECT_EQ(read_input(poller.get(), map::kChannelCount, 1)[0], kChannelCount) << "the poller kept its place";
 }
 
 // libmodbus reads a request until it is complete, waiting up to its byte timeout (50 ms) for
