@@ -34,6 +34,7 @@ class ModbusClientOutput : public SenderOutput {
   bool send(const DriveFrame& frame) override;
   std::string failure() const override { return client_.last_error(); }
   void close() override { client_.disconnect(); }
+  bool send_waits_for_peer() const override { return true; }
 
   ModbusClientOptions options_;
   std::vector<int> channel_indices_;  // DriveFrame::values index per register

@@ -2,7 +2,7 @@
 // away (a Modbus slave, olad, ...): the frames cross to a thread of its own, which sends the
 // newest one at most rate_hz times a second, retries a failed peer with the one back-off
 // (core/backoff.hpp) and sends the pipeline's last frame (the neutral pose) before it stops,
-// unless the peer is failing (a stop is not held for another of its timeouts).
+// unless a peer it waits for failed its last attempt (a stop is not held for another timeout).
 //
 // Thread model: publish() runs on the pipeline's output thread and only stores the frame in a
 // seqlock; a slow or absent peer never reaches it. The sender thread owns the link: it alone
@@ -41,8 +41,8 @@ class SenderOutput : public Output {
  protected:
   SenderOutput(std::string description, int rate_hz, std::chrono::milliseconds max_backoff);
   void start();
-  /// Sends the newest frame if it has not gone out yet (unless the peer failed the last
-  /// attempt), then joins the thread.
+  /// Sends the newest frame if it has not gone out yet (see send_waits_for_peer()), then joins
+  /// the thread.
   void stop();
 
   /// Sender thread: puts `frame` on the link, (re)connecting first when needed. False when
@@ -51,6 +51,10 @@ class SenderOutput : public Output {
   virtual std::string failure() const = 0;
   /// Sender thread, once the loop has ended: let go of the link.
   virtual void close() {}
+  /// Whether send() waits for the peer's answer, up to the link's timeout (a Modbus slave);
+  /// then a peer that failed its last attempt is not sent the neutral pose at stop. A send that
+  /// does not wait (DMX, OSC) is always tried once more.
+  virtual bool send_waits_for_peer() const { return false; }
 
  private:
   void run();
