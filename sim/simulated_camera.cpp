@@ -110,15 +110,18 @@ double SimulatedCamera::duration_s() const {
 
 void SimulatedCamera::rewind() {
   position_ = 0;
-  damaged_pass_ = false;
   last_index_ = -1;
   // The next pass begins a pass's length after this one (where the sound loops), and never
-  // before the slot after the last frame delivered (a file whose length falls short of it).
+  // before the slot after the last frame delivered (a file whose length falls short of it); a
+  // pass cut short by damage, in that slot (the length the file states is not there to wait
+  // for; the clip's sound, which loops at that length, then runs out of step with the picture).
   if (follows_frame_times()) {
-    pass_start_s_ = std::max(pass_start_s_ + duration_s(), static_cast<double>(sequence_) / frame_rate_);
+    const double next_slot_s = static_cast<double>(sequence_) / frame_rate_;
+    pass_start_s_ = damaged_pass_ ? next_slot_s : std::max(pass_start_s_ + duration_s(), next_slot_s);
     sequence_ =
         std::max<std::uint64_t>(sequence_, static_cast<std::uint64_t>(std::llround(pass_start_s_ * frame_rate_)));
   }
+  damaged_pass_ = false;
   // Reopening is exact where seeking to frame 0 is not for every codec.
   if (kind_ == Kind::kVideo) open_video();
 }

@@ -356,7 +356,7 @@ void Monitor::encoder_loop() {
         encoding_failed = false;
       } catch (const std::exception& e) {
         if (!std::exchange(encoding_failed, true))
-          spdlog::warn("monitor: the preview cannot be encoded: {}; the page shows none meanwhile", e.what());
+          spdlog::warn("monitor: the preview cannot be encoded: {}; the page shows the last one meanwhile", e.what());
       }
     }
     const std::int64_t now = monotonic_ns();
