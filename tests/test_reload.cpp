@@ -43,6 +43,14 @@ int count(const std::string& log, const std::string& text) {
   return n;
 }
 
+/// Sends SIGHUP to a daemon that has started once; true when it is running again, reloaded.
+bool reloaded_once(test::DaemonProcess& daemon) {
+  daemon.signal(SIGHUP);
+  const auto deadline = Clock::now() + 60s;
+  while (count(daemon.log(), "running:") < 2 && Clock::now() < deadline) std::this_thread::sleep_for(5ms);
+  return count(daemon.log(), "running:") == 2;
+}
+
 class ReloadTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -216,10 +224,7 @@ TEST_F(ReloadTest, WhatTheOperatorSetOutlivesAReload) {
   ASSERT_TRUE(wait_for_status(kEnabled, false));
   modbus_close(master);
 
-  daemon.signal(SIGHUP);
-  const auto deadline = Clock::now() + 60s;
-  while (count(daemon.log(), "running:") < 2 && Clock::now() < deadline) std::this_thread::sleep_for(5ms);
-  ASSERT_EQ(count(daemon.log(), "running:"), 2) << daemon.log();
+  ASSERT_TRUE(reloaded_once(daemon)) << daemon.log();
   ASSERT_EQ(modbus_connect(master), 0) << modbus_strerror(errno);
   std::uint16_t holding[17] = {};
   ASSERT_EQ(modbus_read_registers(master, 0, 17, holding), 17);
@@ -263,10 +268,7 @@ TEST_F(ReloadTest, ATakeTheOperatorStoppedIsNotStartedAgainByAReload) {
   ASSERT_TRUE(wait_for_recording(false)) << daemon.log();
   modbus_close(master);
 
-  daemon.signal(SIGHUP);
-  const auto deadline = Clock::now() + 60s;
-  while (count(daemon.log(), "running:") < 2 && Clock::now() < deadline) std::this_thread::sleep_for(5ms);
-  ASSERT_EQ(count(daemon.log(), "running:"), 2) << daemon.log();
+  ASSERT_TRUE(reloaded_once(daemon)) << daemon.log();
   ASSERT_EQ(modbus_connect(master), 0) << modbus_strerror(errno);
   std::this_thread::sleep_for(300ms);
   EXPECT_FALSE(recording()) << daemon.log();
