@@ -21,6 +21,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -30,6 +31,17 @@ namespace {
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
+
+/// The CommandError `action` throws; a test failure saying `accepted` when it throws none.
+CommandError error_of(const std::function<void()>& action, const std::string& accepted) {
+  try {
+    action();
+  } catch (const CommandError& e) {
+    return e;
+  }
+  ADD_FAILURE() << accepted;
+  return CommandError("");
+}
 
 struct RunResult {
   int exit_code = -1;
@@ -382,33 +394,21 @@ TEST_F(EvalPlotTest, CsvReaderHandlesQuotesAndEmptyFields) {
 
 TEST_F(EvalPlotTest, CsvReaderErrorsNameFileLineAndColumn) {
   const auto ragged = write("ragged.csv", "frame,width_2d\n0,1\n1\n");
-  try {
-    read_csv_table(ragged);
-    FAIL() << "a row with too few fields was accepted";
-  } catch (const CommandError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(ragged.string() + ":3"));
-    EXPECT_EQ(e.exit_code(), kExitDataError);
-  }
+  const CommandError short_row = error_of([&] { read_csv_table(ragged); }, "a row with too few fields was accepted");
+  EXPECT_THAT(short_row.what(), HasSubstr(ragged.string() + ":3"));
+  EXPECT_EQ(short_row.exit_code(), kExitDataError);
 
   const CsvTable table = read_csv_table(write("words.csv", "frame,width_2d\n0,1\n1,wide\n"));
-  try {
-    numeric_column(table, "width_2d");
-    FAIL() << "a non-number was accepted";
-  } catch (const CommandError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("words.csv:3"));
-    EXPECT_THAT(e.what(), HasSubstr("width_2d"));
-    EXPECT_THAT(e.what(), HasSubstr("wide"));
-  }
+  const CommandError word = error_of([&] { numeric_column(table, "width_2d"); }, "a non-number was accepted");
+  EXPECT_THAT(word.what(), HasSubstr("words.csv:3"));
+  EXPECT_THAT(word.what(), HasSubstr("width_2d"));
+  EXPECT_THAT(word.what(), HasSubstr("wide"));
   EXPECT_THROW(column_index(table, "height_2d"), CommandError);
 
   const auto twice = write("twice.csv", "# take\nframe,width_2d,height_2d,width_2d\n0,1,2,3\n");
-  try {
-    read_csv_table(twice);
-    FAIL() << "a column named twice was accepted";
-  } catch (const CommandError& e) {
-    EXPECT_THAT(e.what(), HasSubstr(twice.string() + ":2: duplicate column 'width_2d'"));
-    EXPECT_EQ(e.exit_code(), kExitDataError);
-  }
+  const CommandError duplicate = error_of([&] { read_csv_table(twice); }, "a column named twice was accepted");
+  EXPECT_THAT(duplicate.what(), HasSubstr(twice.string() + ":2: duplicate column 'width_2d'"));
+  EXPECT_EQ(duplicate.exit_code(), kExitDataError);
 }
 
 TEST_F(EvalPlotTest, EvalRefusesAnInfiniteValueNamingFileLineAndColumn) {
@@ -466,12 +466,8 @@ TEST_F(EvalPlotTest, MalformedAlignLineNamesFileAndLine) {
   for (const char* bad_line :
        {"100 abc bin", "2000 1000 bin", "100 200", "100 200 bin extra", "070 2375050070 23", "50 200 bin"}) {
     const auto path = write("bad.align", std::string("0 100 sil\n") + bad_line + "\n");
-    try {
-      read_grid_align(path);
-      ADD_FAILURE() << "accepted '" << bad_line << "'";
-    } catch (const CommandError& e) {
-      EXPECT_THAT(e.what(), HasSubstr(path.string() + ":2")) << bad_line;
-    }
+    const CommandError error = error_of([&] { read_grid_align(path); }, fmt::format("accepted '{}'", bad_line));
+    EXPECT_THAT(error.what(), HasSubstr(path.string() + ":2")) << bad_line;
   }
 }
 
