@@ -418,16 +418,20 @@ SerialPortSettings read_serial_line(Section& section, std::string_view default_d
   return line;
 }
 
+/// The host must resolve now: a typo shows at check-config, not as silence on the show network.
+UdpEndpoint resolved(Section& section, std::string_view key, const std::string& host, int port) {
+  try {
+    return resolve_udp(host, port);
+  } catch (const UdpError& e) {
+    section.fail(key, e.what());
+  }
+}
+
 /// libmodbus's TCP contexts take a numeric IPv4 address alone: a name (inet_addr() makes it
 /// INADDR_NONE) had the server listen on 255.255.255.255 and the client fail with "Network is
 /// unreachable" for ever. A name is resolved now, once, as the OSC host is.
 std::string numeric_ipv4(Section& section, std::string_view key, const std::string& host, int port) {
-  UdpEndpoint found;
-  try {
-    found = resolve_udp(host, port);
-  } catch (const UdpError& e) {
-    section.fail(key, e.what());
-  }
+  const UdpEndpoint found = resolved(section, key, host, port);
   if (found.address.ss_family != AF_INET)
     section.fail(key, fmt::format("host \"{}\" has no IPv4 address (Modbus TCP takes IPv4 only)", host));
   char numeric[INET_ADDRSTRLEN] = {};
@@ -497,21 +501,12 @@ void read_dmx_outputs(std::vector<Section> outputs, Config& config) {
   }
 }
 
-/// The host must resolve now: a typo shows at check-config, not as silence on the show network.
-void check_resolves(Section& section, std::string_view key, const std::string& host, int port) {
-  try {
-    resolve_udp(host, port);
-  } catch (const UdpError& e) {
-    section.fail(key, e.what());
-  }
-}
-
 void read_osc_outputs(std::vector<Section> outputs, Config& config) {
   for (Section& osc : outputs) {
     OscOutputOptions options;
     options.host = osc.string("host", options.host);
     options.port = osc.integer("port", options.port, 1, 65535);
-    check_resolves(osc, "host", options.host, options.port);
+    resolved(osc, "host", options.host, options.port);
     options.channels = osc.strings("channels");
     check_channel_names(osc, "channels", options.channels, config);
     std::vector<std::string> names = options.channels;
@@ -609,7 +604,7 @@ void read_osc_control(Section control, Config& config) {
   c.enabled = control.boolean("enabled", c.enabled);
   c.address = control.string("address", c.address);
   c.port = control.integer("port", c.port, 1, 65535);
-  if (c.enabled) check_resolves(control, "address", c.address, c.port);
+  if (c.enabled) resolved(control, "address", c.address, c.port);
   control.reject_unknown_keys();
 }
 
