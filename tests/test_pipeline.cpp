@@ -14,6 +14,7 @@
 #include "firmware_app/daemon/latest_frame.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
+#include "firmware_app/daemon/timecode_source.hpp"
 #include "firmware_app/tables/measures_csv.hpp"
 #include "fixture_paths.hpp"
 #include "pipeline_parts.hpp"
@@ -33,6 +34,7 @@
 #include <fcntl.h>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <map>
 #include <new>
@@ -40,6 +42,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <sys/wait.h>
 #include <thread>
@@ -426,10 +429,13 @@ TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
 /// first sat at neutral afterwards, and whether it followed the face again once it was back.
 class OutageWatch : public Output {
  public:
-  explicit OutageWatch(double neutral) : neutral_(neutral) {}
+  /// An outage begins with the first drive frame `begins` holds for (by default: the camera away).
+  explicit OutageWatch(double neutral, std::function<bool(const DriveFrame&)> begins = [](const DriveFrame& frame) {
+    return !(frame.status & kStatusCameraConnected);
+  }) : neutral_(neutral), begins_(std::move(begins)) {}
   void publish(const DriveFrame& frame) override {
     const bool tracked = frame.status & kStatusTracking;
-    if (!(frame.status & kStatusCameraConnected)) outage_seen = true;
+    if (begins_(frame)) outage_seen = true;
     if (!outage_seen) {
       if (tracked) last_tracked_ns = frame.time_ns;
       return;
@@ -447,6 +453,7 @@ class OutageWatch : public Output {
 
  private:
   double neutral_;
+  std::function<bool(const DriveFrame&)> begins_;
 };
 
 /// One channel, "open": the signal (0..1) maps to 0..500 and neutral sits at 1000, which only
@@ -496,6 +503,56 @@ TEST_F(PipelineTest, CameraLossEasesTheDriveToNeutralAndBack) {
   EXPECT_NEAR(to_neutral_ms, 500, 60);
   EXPECT_TRUE(watch.fail_safe_at_neutral);
   EXPECT_TRUE(watch.followed_again) << "the drive follows the face again after the reconnect";
+}
+
+/// A timecode source that throws while `failing` is set: a step of the frame before its result
+/// is published, as dlib or OpenCV throw on a picture they cannot handle.
+class FailingTimecode : public TimecodeSource {
+ public:
+  FailingTimecode() : TimecodeSource(TimecodeRate::k25) {}
+  std::optional<std::int32_t> frame_at(std::int64_t) const override {
+    if (!failing) return std::nullopt;
+    ++thrown;
+    throw std::runtime_error("test: this frame cannot be measured");
+  }
+  std::string describe() const override { return "failing timecode"; }
+  std::atomic<bool> failing{false};
+  mutable std::atomic<int> thrown{0};
+};
+
+// An exception on the processing thread does not end the daemon (std::terminate, the figure
+// left where it was): the frame counts as untracked, the drive holds and eases to neutral while
+// the errors go on, and follows the face again after them.
+TEST_F(PipelineTest, FramesWhoseStepThrowsAreUntrackedAndTheDriveFollowsAgainAfterThem) {
+  const testing::CapturedLog log;
+  SimulatedCameraOptions options = clip_options();
+  options.real_time = true;
+  DriveControl control;
+  Pipeline pipeline(std::make_unique<SimulatedCamera>(options), make_processor(), neutral_out_of_reach(), control);
+  FailingTimecode timecode;
+  pipeline.set_timecode(timecode);
+  OutageWatch watch(1000, [&timecode](const DriveFrame&) { return timecode.thrown > 0; });
+  pipeline.add_output(watch);
+  pipeline.start();
+  wait_for([&] { return watch.last_tracked_ns > 0; }, 30s);
+  std::this_thread::sleep_for(1s);  // past the acquisition, whose frame reaches the drive late
+  timecode.failing = true;
+  wait_for([&] { return watch.neutral_at_ns > 0; }, 30s);
+  std::this_thread::sleep_for(1s);  // errors on every frame for a second more
+  timecode.failing = false;
+  wait_for([&] { return watch.followed_again.load(); }, 30s);
+  pipeline.stop();
+  ASSERT_GT(watch.neutral_at_ns, 0) << "the drive never reached neutral while every frame threw";
+  EXPECT_TRUE(watch.fail_safe_at_neutral);
+  const double to_neutral_ms = static_cast<double>(watch.neutral_at_ns - watch.last_tracked_ns) / 1e6;
+  EXPECT_NEAR(to_neutral_ms, 500, 60) << "hold + ease from the last tracked frame";
+  EXPECT_TRUE(watch.followed_again) << "the drive follows the face again once frames are measured";
+  EXPECT_GE(pipeline.stats().lost_track, 1u);
+  const std::vector<std::string> errors = log.messages(spdlog::level::err);
+  ASSERT_FALSE(errors.empty());
+  EXPECT_THAT(errors.front(), HasSubstr("cannot be measured; the frame counts as untracked"));
+  // At most ten lines a second, the rest counted: fewer lines than frames that threw.
+  EXPECT_LT(static_cast<int>(errors.size()), timecode.thrown.load());
 }
 
 /// A camera the test plugs in and unplugs: while it is away, grab() says so after a while of

@@ -106,7 +106,11 @@ void Pipeline::processing_loop() {
     }
     if (frame == nullptr) frame = capture_.take(wait);
     if (frame != nullptr) {
-      process(*frame);
+      try {
+        process(*frame);
+      } catch (const std::exception& e) {
+        untrust(*frame, e.what());
+      }
       warm_at_ns_ = warm_time(frame->capture_time_ns);
     } else if (capture_.ended() || capture_.failed()) {
       finished_.store(true, std::memory_order_release);
@@ -132,6 +136,7 @@ std::int64_t Pipeline::warm_time(std::int64_t capture_ns) {
 }
 
 void Pipeline::process(const CapturedFrame& frame) {
+  published_ = false;
   hand_off_time_.add(monotonic_ns() - frame.capture_time_ns);
   const FrameMeasurement& measurement = processor_->process(frame.gray, frame.cr);
   add_stage_time(landmarks_time_, measurement.landmarks_ms);
@@ -158,22 +163,47 @@ void Pipeline::process(const CapturedFrame& frame) {
   result.height = frame.gray.rows;
   result.processed_time_ns = monotonic_ns();
   processed_latency_.add(result.processed_time_ns - result.capture_time_ns);
-  VoiceState voice;
-  bool heard = false;
-  voice_state(result.processed_time_ns, voice, heard);
-  result.drive = select_source(result.tracked, heard);
-
-  if (was_tracked_ && !result.tracked) lost_track_.fetch_add(1, std::memory_order_relaxed);
-  was_tracked_ = result.tracked;
-  tracked_.fetch_add(result.tracked, std::memory_order_relaxed);
-  results_.publish(result);
+  publish(result);
   for (ResultSink* sink : sinks_) sink->push(result);
   if (preview_ && preview_->due(frame.capture_time_ns))
     preview_->offer(frame.gray, frame.sequence, frame.capture_time_ns, result.tracked, measurement.landmarks,
                     processor_->fit().projected, side_ ? side_->view() : SideView{});
   calibrate_step(result);
+}
+
+void Pipeline::publish(FrameResult& result) {
+  VoiceState voice;
+  bool heard = false;
+  voice_state(result.processed_time_ns, voice, heard);
+  result.drive = select_source(result.tracked, heard);
+  if (was_tracked_ && !result.tracked) lost_track_.fetch_add(1, std::memory_order_relaxed);
+  was_tracked_ = result.tracked;
+  tracked_.fetch_add(result.tracked, std::memory_order_relaxed);
+  results_.publish(result);
+  published_ = true;
   const std::uint64_t processed = processed_.fetch_add(1, std::memory_order_relaxed) + 1;
   if (settings_.max_frames > 0 && processed >= settings_.max_frames) finished_.store(true, std::memory_order_release);
+}
+
+void Pipeline::untrust(const CapturedFrame& frame, const char* what) {
+  std::uint64_t held_back = 0;
+  const bool log = frame_errors_.pass(held_back);
+  if (published_) {  // a consumer of the result failed (a sink, the preview): the drive has it
+    if (log) spdlog::error("frame {}: {}{}", frame.sequence, what, held_back_note(held_back));
+    return;
+  }
+  if (log)
+    spdlog::error("frame {}: {}; the frame counts as untracked and the face is detected afresh{}", frame.sequence, what,
+                  held_back_note(held_back));
+  processor_->forget(FaceTracker::Next::kVideo);
+  FrameResult result;
+  result.sequence = frame.sequence;
+  result.capture_time_ns = frame.capture_time_ns;
+  result.media_time_s = frame.media_time_s;
+  result.width = frame.gray.cols;
+  result.height = frame.gray.rows;
+  result.processed_time_ns = monotonic_ns();
+  publish(result);
 }
 
 void Pipeline::calibrate_step(const FrameResult& result) {

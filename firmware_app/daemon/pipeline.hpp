@@ -31,6 +31,7 @@
 #include "firmware_app/daemon/frame_result.hpp"
 #include "firmware_app/daemon/latency_histogram.hpp"
 #include "firmware_app/daemon/latest_frame.hpp"
+#include "firmware_app/daemon/log_throttle.hpp"
 #include "firmware_app/daemon/preview_feed.hpp"
 #include "firmware_app/daemon/side_camera.hpp"
 #include "firmware_app/daemon/take_recorder.hpp"
@@ -155,6 +156,14 @@ class Pipeline {
   void processing_loop();
   void output_loop();
   void process(const CapturedFrame& frame);
+  /// Processing thread: a frame whose measuring threw (a library's error on a picture it
+  /// cannot handle, memory exhausted) is published untracked, so that the drive holds and eases
+  /// to neutral while such errors go on, and the next frame detects the face afresh; one that
+  /// threw after its result was published (in a sink or the preview) only logs. The thread
+  /// carries on either way. At most ten lines a second.
+  void untrust(const CapturedFrame& frame, const char* what);
+  /// Processing thread: the frame's source of the drive, the counts, then the result to readers.
+  void publish(FrameResult& result);
   /// Processing thread: a new calibrate request starts a neutral capture; the tracked frames
   /// feed it; the last of settings_.neutral_frames re-centres the profile on them.
   void calibrate_step(const FrameResult& result);
@@ -194,6 +203,8 @@ class Pipeline {
   PerformerProfile profile_;
   CalibrationCapture neutral_;  // a calibrate command's neutral frames
   bool capturing_neutral_ = false;
+  LogThrottle frame_errors_;  // untrust()'s lines
+  bool published_ = false;    // the frame in hand's result went to readers
   std::uint32_t calibrate_requests_seen_ = 0;
   std::int64_t last_watchdog_ns_ = 0;
   std::int64_t warm_at_ns_ = 0;       // when to warm the caches for the next frame; 0: not before it
