@@ -639,7 +639,7 @@ class TestSlave {
       }
       modbus_set_socket(context_.get(), client);
       const int length = modbus_receive(context_.get(), query);
-      if (length > 0) {
+      if (length > 0 && answering_) {  // a request read as it stopped answering goes unanswered too
         std::lock_guard lock(mutex_);
         modbus_reply(context_.get(), query, length, mapping_);
       } else if (length == -1) {
@@ -752,6 +752,39 @@ TEST(ModbusClient, AStopWithASilentSlaveWaitsForNoFurtherTimeout) {
   const std::vector<std::string> warnings = log.messages(spdlog::level::warn);
   EXPECT_TRUE(std::ranges::any_of(
       warnings, [](const std::string& m) { return m.find("the neutral pose was not sent") != std::string::npos; }));
+}
+
+// A stop waits for a request on its way, but no output starts another once the daemon stops:
+// asked together (as the daemon asks its outputs), two clients of slaves that stopped answering
+// stop in one request's timeout. One by one, the second client retried (its first back-off is
+// 100 ms) while the first was being joined, and the stop took two (two Modbus clients would
+// outlast the service's 3 s stop).
+TEST(ModbusClient, ClientsAskedToStopTogetherStartNoFurtherRequest) {
+  TestSlave first_slave, second_slave;
+  ModbusClientOptions options;
+  options.rate_hz = 200;
+  options.timeout_ms = 1000;
+  std::vector<std::unique_ptr<ModbusClientOutput>> outputs;
+  for (const TestSlave* slave : {&first_slave, &second_slave}) {
+    options.link.port = slave->port();
+    outputs.push_back(std::make_unique<ModbusClientOutput>(options, kChannels));
+    outputs.back()->publish(frame_with(1, 500, 1234));
+  }
+  ASSERT_TRUE(wait_for([&] { return outputs[0]->sends_ok() > 0 && outputs[1]->sends_ok() > 0; }));
+  // The second slave falls silent first: its client's request times out 150 ms before the
+  // first's, and one back-off later it would retry, while the first is still being waited for.
+  second_slave.set_answering(false);
+  outputs[1]->publish(frame_with(2, 0, 0));
+  std::this_thread::sleep_for(150ms);
+  first_slave.set_answering(false);
+  outputs[0]->publish(frame_with(2, 0, 0));  // the neutral pose
+  std::this_thread::sleep_for(20ms);
+  const auto start = std::chrono::steady_clock::now();
+  for (const auto& output : outputs) output->request_stop();
+  outputs.clear();
+  const auto stop_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(stop_ms, options.timeout_ms + 500) << "a client started another request after the stop";
 }
 
 TEST(ModbusClient, UnknownChannelIsNamed) {

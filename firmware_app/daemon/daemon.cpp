@@ -104,7 +104,13 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
   if (config_.monitor.enabled) start_monitor(options.monitor_token, settings.model_mismatch);
 }
 
-Daemon::~Daemon() = default;
+// Stopped here too for a daemon a reload replaces: its outputs finish together.
+Daemon::~Daemon() { stop(); }
+
+void Daemon::stop() {
+  pipeline_->stop();
+  for (const auto& output : outputs_) output->request_stop();
+}
 
 void Daemon::start_monitor(const std::string& fallback_token, bool model_mismatch) {
   const Config::Monitor& settings = config_.monitor;

@@ -79,8 +79,9 @@ class Daemon {
   void report_status();
   /// --stats: frame counts and latencies on stderr.
   void print_stats() const;
-  /// Finishes the frame in hand, sends the neutral pose on every output, joins the threads.
-  void stop() { pipeline_->stop(); }
+  /// Finishes the frame in hand, sends the neutral pose on every output, joins the pipeline's
+  /// threads and asks the outputs' to finish (they are joined as the daemon is destroyed).
+  void stop();
 
   PipelineStats stats() const { return pipeline_->stats(); }
   bool finished() const { return pipeline_->finished(); }

@@ -49,6 +49,10 @@ class Output {
   /// The neutral pose when the pipeline stops: the last frame, which must not be dropped
   /// where publish() would drop a frame (a busy line). May wait, briefly and boundedly.
   virtual void publish_last(const DriveFrame& frame) { publish(frame); }
+  /// After the last frame: asks a thread of the output's own to finish (send the neutral pose,
+  /// let go of its link) without waiting for it; the destructor joins it. The daemon asks every
+  /// output at once, so that its stop waits for the slowest output, not for the sum of them.
+  virtual void request_stop() {}
   /// For logs and the status line, e.g. "modbus tcp 127.0.0.1:1502".
   virtual std::string describe() const = 0;
   /// False while the output cannot reach its peer or device (it keeps retrying by itself).

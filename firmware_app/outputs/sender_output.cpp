@@ -29,12 +29,16 @@ void SenderOutput::start() {
   name_thread(thread_, ("lipdrive-" + description_.substr(0, description_.find(' '))).c_str());
 }
 
-void SenderOutput::stop() {
+void SenderOutput::request_stop() {
   {
     std::lock_guard lock(stop_mutex_);
     stopping_ = true;
   }
   stop_wake_.notify_all();
+}
+
+void SenderOutput::stop() {
+  request_stop();
   if (thread_.joinable()) thread_.join();
 }
 

@@ -29,6 +29,7 @@ namespace lipdrive {
 class SenderOutput : public Output {
  public:
   void publish(const DriveFrame& frame) final { latest_.publish(frame); }
+  void request_stop() final;
   std::string describe() const final { return description_; }
   bool healthy() const final { return healthy_.load(std::memory_order_relaxed); }
   /// Capture -> sent (send() returned true), once per captured frame.
@@ -41,8 +42,8 @@ class SenderOutput : public Output {
  protected:
   SenderOutput(std::string description, int rate_hz, std::chrono::milliseconds max_backoff);
   void start();
-  /// Sends the newest frame if it has not gone out yet (see send_waits_for_peer()), then joins
-  /// the thread.
+  /// request_stop(), then joins the thread: it sends the newest frame first if that has not
+  /// gone out yet (see send_waits_for_peer()).
   void stop();
 
   /// Sender thread: puts `frame` on the link, (re)connecting first when needed. False when
