@@ -70,7 +70,7 @@ VoiceTrainingSettings settings_for(const TrainingOptions& o, double lookahead_ms
 
 void add_training_options(CLI::App* cmd, TrainingOptions& o, bool sweep) {
   cmd->add_option("--sample-rate", o.sample_rate, "the sound is resampled to this (Hz); the live input must match")
-      ->check(CLI::Range(kMinAudioSampleRate, 48000))
+      ->check(CLI::Range(kMinAudioSampleRate, kMaxVoiceSampleRate))
       ->capture_default_str();
   auto* lookahead = cmd->add_option("--lookahead-ms", o.lookahead_ms,
                                     sweep ? "look-ahead(s) in ms, 0..80; several: one model each (a sweep)"

@@ -582,7 +582,7 @@ void read_voice(Section voice, Config& config) {
   v.model = voice.string("model", "");
   v.input = voice.one_of("input", "sim", {"sim", "alsa"}) == "alsa" ? Config::Voice::Input::kAlsa
                                                                     : Config::Voice::Input::kSim;
-  const int sample_rate = voice.integer("sample_rate", v.alsa.sample_rate, kMinAudioSampleRate, 48'000);
+  const int sample_rate = voice.integer("sample_rate", v.alsa.sample_rate, kMinAudioSampleRate, kMaxVoiceSampleRate);
   read_alsa_input(voice, sample_rate, v.alsa);
   v.crossfade_ms = voice.integer("crossfade_ms", v.crossfade_ms, 0, 2000);
   v.audio_timeout_ms = voice.integer("audio_timeout_ms", v.audio_timeout_ms, 20, 5000);
