@@ -636,6 +636,30 @@ TEST_F(ProcessTest, AMissingSideRecordingOrVoiceModelLeavesTheOutputAsItWas) {
   }
 }
 
+// --out naming a file the command reads, by any spelling, is a mistake on the command line:
+// the take, the configuration and the output all stay as they were (before, `process take.avi
+// --out take.avi` replaced the take with its table and exited 0).
+TEST_F(ProcessTest, AnOutThatIsAnInputIsRefusedAndBothStayAsTheyWere) {
+  const fs::path source = kFixtureDir / "talking_face.avi";
+  LIPDRIVE_REQUIRE_BUILT(source);
+  const fs::path take = dir_ / "take.avi", link = dir_ / "link.avi", config = dir_ / "c.toml";
+  fs::copy_file(source, take);
+  fs::create_symlink(take, link);
+  std::ofstream(config) << "[model]\n";
+  const auto size = fs::file_size(take);
+  for (const std::string& args :
+       {fmt::format("{} --out {}", take.string(), take.string()),
+        fmt::format("{} --out {}/./take.avi", take.string(), dir_.string()),
+        fmt::format("{} --out {}", link.string(), take.string()),
+        fmt::format("{} --config {} --out {}", take.string(), config.string(), config.string())}) {
+    const ProcessRun run = run_process(args, dir_);
+    EXPECT_EQ(run.exit_code, 64) << args << "\n" << run.stderr_text;
+    EXPECT_NE(run.stderr_text.find("writing it would replace what the command reads"), std::string::npos) << args;
+    EXPECT_EQ(fs::file_size(take), size) << args;
+    EXPECT_EQ(file_text(config), "[model]\n") << args;
+  }
+}
+
 // An input that gives no row at all (a recording without frames, a folder whose pictures
 // cannot be read) leaves an earlier table as it was: the rows go to a file beside it that
 // replaces it once they are all written.

@@ -6,6 +6,7 @@
 #include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/out_option.hpp"
 #include "firmware_app/cli/recording.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
@@ -301,7 +302,10 @@ void add_build_command(CLI::App& model) {
           },
           "FLOAT in (0 - 1]"))
       ->capture_default_str();
-  cmd->callback([args] { run_build(*args); });
+  cmd->callback([args, cmd] {
+    refuse_out_over_input(*cmd);
+    run_build(*args);
+  });
 }
 
 void add_info_command(CLI::App& model) {
@@ -331,7 +335,10 @@ void add_render_command(CLI::App& model) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--out", args->out, "PNG file to write")->required();
-  cmd->callback([args] { render(*args); });
+  cmd->callback([args, cmd] {
+    refuse_out_over_input(*cmd);
+    render(*args);
+  });
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/out_option.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 
 #include <CLI/CLI.hpp>
@@ -352,7 +353,10 @@ void add_plot_command(CLI::App& app) {
   plot->add_option("--height", options->height, "Image height in pixels (default: 240 px per panel plus margins)")
       ->check(CLI::Range(150, kMaxImageSide));
   plot->add_option("--title", options->title, "Title above the plot");
-  plot->callback([options] { run_plot(*options); });
+  plot->callback([options, plot] {
+    refuse_out_over_input(*plot);
+    run_plot(*options);
+  });
 }
 
 }  // namespace lipdrive

@@ -3,6 +3,7 @@
 // daemon maps in milliseconds instead of parsing for seconds (core/shape_predictor.hpp).
 // `lipdrive predictor info [FILE]`: what a predictor file holds.
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/out_option.hpp"
 #include "firmware_app/config/predictor_file.hpp"
 
 #include <CLI/CLI.hpp>
@@ -25,7 +26,8 @@ void add_predictor_command(CLI::App& app) {
       predictor->add_subcommand("convert", "Write a dlib 68-point shape predictor (.dat) as a compact .lpp file");
   convert_cmd->add_option("--in", convert->in, "dlib shape predictor (.dat) or .lpp")->required();
   convert_cmd->add_option("--out", convert->out, "compact predictor file to write (.lpp)")->required();
-  convert_cmd->callback([convert] {
+  convert_cmd->callback([convert, convert_cmd] {
+    refuse_out_over_input(*convert_cmd);
     const auto data = load_predictor_file(convert->in);
     save_compact_predictor_file(convert->out, *data);
     fmt::print("{}: {} cascades, {} trees of depth {}, {} bytes\n", convert->out.string(), data->num_cascades(),

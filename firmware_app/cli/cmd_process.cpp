@@ -16,6 +16,7 @@
 #include "drivers/clock.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/out_option.hpp"
 #include "firmware_app/cli/recording.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
@@ -494,7 +495,10 @@ void add_process_command(CLI::App& app) {
                   "degrees clockwise that stand the frames upright (a camera mounted on its side); default: the "
                   "--config's [camera] rotation, else 0")
       ->check(CLI::IsMember({0, 90, 180, 270}));
-  cmd->callback([options] { run_process(*options); });
+  cmd->callback([options, cmd] {
+    refuse_out_over_input(*cmd);
+    run_process(*options);
+  });
 }
 
 }  // namespace lipdrive

@@ -6,6 +6,7 @@
 #include "core/voice_training.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
+#include "firmware_app/cli/out_option.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -319,7 +320,10 @@ void add_voice_command(CLI::App& app) {
   t->add_option("--config", train->config,
                 "the daemon's configuration: the tracker and fit the clips are measured with");
   add_training_options(t, train->training, false);
-  t->callback([train] { run_train(*train); });
+  t->callback([train, t] {
+    refuse_out_over_input(*t);
+    run_train(*train);
+  });
 
   auto eval = std::make_shared<EvalCommand>();
   CLI::App* e = voice->add_subcommand(
