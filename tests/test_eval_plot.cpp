@@ -471,6 +471,22 @@ TEST_F(EvalPlotTest, MalformedAlignLineNamesFileAndLine) {
   }
 }
 
+// A transcript with no word (an empty or blank file) or a folder given as one is an error, not
+// a closure metric quietly left out (both read as no words and `eval` exited 0).
+TEST_F(EvalPlotTest, AnAlignmentWithoutWordsOrAFolderIsAnError) {
+  for (const char* text : {"", "\n\n  \n"}) {
+    const auto path = write("empty.align", text);
+    const CommandError error = error_of([&] { read_grid_align(path); }, "an alignment without words was accepted");
+    EXPECT_EQ(error.exit_code(), kExitDataError);
+    EXPECT_THAT(error.what(), HasSubstr(path.string() + ": no words"));
+  }
+  const fs::path folder = dir_ / "folder.align";
+  fs::create_directory(folder);
+  const CommandError error = error_of([&] { read_grid_align(folder); }, "a folder was accepted as an alignment");
+  EXPECT_EQ(error.exit_code(), kExitNoInput);
+  EXPECT_THAT(error.what(), HasSubstr(folder.string()));
+}
+
 /// Distinct saturated hues with at least `min_pixels` pixels: the line colours.
 int line_colour_count(const cv::Mat& image, int min_pixels) {
   cv::Mat hsv;

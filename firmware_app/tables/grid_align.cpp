@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 #include <sstream>
+#include <system_error>
 
 namespace lipdrive {
 namespace {
@@ -39,8 +40,9 @@ std::optional<AlignedWord> parse_line(const std::string& line) {
 }  // namespace
 
 std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path) {
+  std::error_code error;
   std::ifstream in(path);
-  if (!in) {
+  if (!in || std::filesystem::is_directory(path, error)) {  // a folder opens, and reads as no words
     throw CommandError(fmt::format("cannot open alignment file {}", path.string()), kExitNoInput);
   }
   std::vector<AlignedWord> words;
@@ -65,6 +67,8 @@ std::vector<AlignedWord> read_grid_align(const std::filesystem::path& path) {
     }
     words.push_back(std::move(*word));
   }
+  // Nothing to score against: an empty or blank transcript would report no closure, silently.
+  if (words.empty()) throw CommandError(fmt::format("{}: no words", path.string()), kExitDataError);
   return words;
 }
 
