@@ -430,9 +430,10 @@ TEST_F(PipelineTest, CameraDisconnectIsCountedAndFramesResume) {
 class OutageWatch : public Output {
  public:
   /// An outage begins with the first drive frame `begins` holds for (by default: the camera away).
-  explicit OutageWatch(double neutral, std::function<bool(const DriveFrame&)> begins = [](const DriveFrame& frame) {
-    return !(frame.status & kStatusCameraConnected);
-  }) : neutral_(neutral), begins_(std::move(begins)) {}
+  explicit OutageWatch(
+      double neutral, std::function<bool(const DriveFrame&)> begins =
+                          [](const DriveFrame& frame) { return !(frame.status & kStatusCameraConnected); })
+      : neutral_(neutral), begins_(std::move(begins)) {}
   void publish(const DriveFrame& frame) override {
     const bool tracked = frame.status & kStatusTracking;
     if (begins_(frame)) outage_seen = true;

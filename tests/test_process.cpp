@@ -583,6 +583,19 @@ TEST_F(ProcessTest, CommandLineMistakesExitWithUsage) {
   EXPECT_EQ(run_process("--help > /dev/null", dir_).exit_code, 0);
 }
 
+// A real-valued option's range refuses nan and infinities (CLI::Range let nan through: voice
+// train ran with "look-ahead 0 ms", model render drew an empty picture, both exit 0).
+TEST_F(ProcessTest, RealOptionsRefuseNanAndInfinity) {
+  const std::string out = (dir_ / "out").string();
+  for (const std::string& args :
+       {"voice train --lookahead-ms nan --out " + out + ".lpv x.mpg", "model render --yaw nan --out " + out + ".png",
+        "model render --yaw inf --out " + out + ".png", "calibrate --motion-seconds nan --out " + out + ".toml"}) {
+    const test::CommandRun run = test::run_command(std::string(test::kLipdrive) + " " + args);
+    EXPECT_EQ(run.exit_code, 64) << args << "\n" << run.output;
+    EXPECT_NE(run.output.find("is not a number in"), std::string::npos) << args << "\n" << run.output;
+  }
+}
+
 TEST_F(ProcessTest, APictureLargerThanACamerasIsADataErrorNamingItsSize) {
   const fs::path wide = dir_ / "wide.png";
   ASSERT_TRUE(cv::imwrite(wide.string(), cv::Mat(16, 9000, CV_8UC1, cv::Scalar(0))));

@@ -11,7 +11,7 @@
 #include "core/statistics.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
-#include "firmware_app/cli/out_option.hpp"
+#include "firmware_app/cli/options.hpp"
 #include "firmware_app/cli/recording.hpp"
 #include "firmware_app/daemon/rotated_camera.hpp"
 #include "firmware_app/config/config.hpp"
@@ -221,7 +221,7 @@ void add_calibrate_command(CLI::App& app) {
   cmd->add_option("--neutral-frames", options->neutral_frames, "tracked frames of the neutral capture")
       ->check(CLI::Range(kMinNeutralFrames, CalibrationCapture::kCapacity));
   cmd->add_option("--motion-seconds", options->motion_seconds, "live camera: length of the range-of-motion capture")
-      ->check(CLI::Range(1.0, 60.0));
+      ->check(finite_range(1.0, 60.0));
   cmd->callback([options, cmd] {
     refuse_out_over_input(*cmd);
     run_calibrate(*options);

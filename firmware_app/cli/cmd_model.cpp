@@ -6,7 +6,7 @@
 #include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
-#include "firmware_app/cli/out_option.hpp"
+#include "firmware_app/cli/options.hpp"
 #include "firmware_app/cli/recording.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
@@ -324,6 +324,7 @@ void add_render_command(CLI::App& model) {
                   "Pose name (see `lipdrive model info`); for a model with expressions also an expression")
       ->capture_default_str();
   cmd->add_option("--yaw", args->yaw_degrees, "Head rotation in degrees: 0 frontal, 90 right profile")
+      ->check(finite_range(-180.0, 180.0))
       ->capture_default_str();
   cmd->add_option("--size", args->size, "Image width and height in pixels (with --video: the height)")
       ->check(CLI::Range(16, 8192))

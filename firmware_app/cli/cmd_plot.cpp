@@ -3,7 +3,7 @@
 #include "drivers/image_codec.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
-#include "firmware_app/cli/out_option.hpp"
+#include "firmware_app/cli/options.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 
 #include <CLI/CLI.hpp>

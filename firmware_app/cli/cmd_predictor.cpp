@@ -3,7 +3,7 @@
 // daemon maps in milliseconds instead of parsing for seconds (core/shape_predictor.hpp).
 // `lipdrive predictor info [FILE]`: what a predictor file holds.
 #include "firmware_app/cli/commands.hpp"
-#include "firmware_app/cli/out_option.hpp"
+#include "firmware_app/cli/options.hpp"
 #include "firmware_app/config/predictor_file.hpp"
 
 #include <CLI/CLI.hpp>

@@ -16,7 +16,7 @@
 #include "drivers/clock.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
-#include "firmware_app/cli/out_option.hpp"
+#include "firmware_app/cli/options.hpp"
 #include "firmware_app/cli/recording.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"

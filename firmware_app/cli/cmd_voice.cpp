@@ -6,7 +6,7 @@
 #include "core/voice_training.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/cli/commands.hpp"
-#include "firmware_app/cli/out_option.hpp"
+#include "firmware_app/cli/options.hpp"
 #include "firmware_app/config/config.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/model_files.hpp"
@@ -76,11 +76,11 @@ void add_training_options(CLI::App* cmd, TrainingOptions& o, bool sweep) {
   auto* lookahead = cmd->add_option("--lookahead-ms", o.lookahead_ms,
                                     sweep ? "look-ahead(s) in ms, 0..80; several: one model each (a sweep)"
                                           : "look-ahead in ms, 0..80: the delay it costs, for accuracy")
-                        ->check(CLI::Range(0.0, 80.0))
+                        ->check(finite_range(0.0, 80.0))
                         ->capture_default_str();
   if (!sweep) lookahead->expected(1);
   cmd->add_option("--past-ms", o.past_ms, "context before each prediction, ms")
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(finite_range(0.0, 1000.0))
       ->capture_default_str();
   cmd->add_option("--stride", o.stride, "every Nth feature frame of the context")
       ->check(CLI::Range(1, 10))
@@ -88,22 +88,22 @@ void add_training_options(CLI::App* cmd, TrainingOptions& o, bool sweep) {
   cmd->add_option("--hidden", o.hidden, "tanh hidden units (0: linear ridge regression)")
       ->check(CLI::Range(0, kMaxVoiceHidden))
       ->capture_default_str();
-  cmd->add_option("--ridge", o.ridge, "L2 penalty per sample")->check(CLI::Range(0.0, 1e6))->capture_default_str();
+  cmd->add_option("--ridge", o.ridge, "L2 penalty per sample")->check(finite_range(0.0, 1e6))->capture_default_str();
   cmd->add_option("--cepstra", o.cepstra, "MFCCs per frame (0: the log mel band energies)")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
   cmd->add_option("--mel-bands", o.mel_bands, "mel filter bank bands")->check(CLI::Range(4, 64))->capture_default_str();
   cmd->add_option("--smoothing-ms", o.smoothing_ms, "output low-pass time constant, ms")
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(finite_range(0.0, 1000.0))
       ->capture_default_str();
   cmd->add_option("--gate-ms", o.gate_ms, "cross-fade to and from rest on voice activity, ms")
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(finite_range(0.0, 1000.0))
       ->capture_default_str();
   cmd->add_option("--epochs", o.epochs, "hidden layer: training steps")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   cmd->add_option("--learning-rate", o.learning_rate, "hidden layer: Adam's step size")
-      ->check(CLI::Range(1e-6, 1.0))
+      ->check(finite_range(1e-6, 1.0))
       ->capture_default_str();
 }
 

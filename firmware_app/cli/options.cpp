@@ -1,4 +1,4 @@
-#include "firmware_app/cli/out_option.hpp"
+#include "firmware_app/cli/options.hpp"
 
 #include "firmware_app/cli/command_error.hpp"
 
@@ -9,6 +9,16 @@
 #include <system_error>
 
 namespace lipdrive {
+
+CLI::Validator finite_range(double min, double max) {
+  return CLI::Validator(
+      [min, max](std::string& text) {
+        double value = 0;
+        if (CLI::detail::lexical_cast(text, value) && value >= min && value <= max) return std::string();
+        return fmt::format("{} is not a number in [{}, {}]", text, min, max);
+      },
+      fmt::format("NUMBER in [{} - {}]", min, max));
+}
 
 void refuse_out_over_input(const CLI::App& command) {
   namespace fs = std::filesystem;
