@@ -4,6 +4,7 @@
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/tables/csv_table.hpp"
 #include "firmware_app/tables/grid_align.hpp"
+#include "firmware_app/tables/measures_csv.hpp"
 #include "fixture_paths.hpp"
 
 #include <fmt/format.h>
@@ -22,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -411,9 +413,10 @@ TEST_F(EvalPlotTest, CsvReaderErrorsNameFileLineAndColumn) {
   EXPECT_EQ(duplicate.exit_code(), kExitDataError);
 }
 
-TEST_F(EvalPlotTest, EvalRefusesAnInfiniteValueNamingFileLineAndColumn) {
-  // It was read as a value: "rmse_scaled -nan" and "n 2" against "3 frames matched", without a word.
-  for (const char* value : {"inf", "-inf"}) {
+TEST_F(EvalPlotTest, EvalRefusesANonFiniteValueNamingFileLineAndColumn) {
+  // It was read as a value: "rmse_scaled -nan" and "n 2" against "3 frames matched", without a
+  // word; a nan was taken for a missing value (which is an empty field).
+  for (const char* value : {"inf", "-inf", "nan"}) {
     const auto pred = write("pred.csv", fmt::format("frame,time_s,width_2d\n0,0,1\n1,0.04,{}\n2,0.08,3\n", value));
     const auto truth = write("truth.csv", "frame,time_s,width_2d\n0,0,1\n1,0.04,2\n2,0.08,3\n");
     const RunResult result = run({"eval", "--truth", truth, "--pred", pred});
@@ -421,6 +424,24 @@ TEST_F(EvalPlotTest, EvalRefusesAnInfiniteValueNamingFileLineAndColumn) {
     EXPECT_THAT(result.err,
                 HasSubstr(fmt::format("{}:3: column 'width_2d': '{}' is not a finite number", pred.string(), value)));
   }
+}
+
+// A measure that is not finite is written as a missing value, an empty field, which the readers
+// take as missing; it was written as "nan", which they now refuse.
+TEST_F(EvalPlotTest, AMeasureThatIsNotFiniteIsWrittenAsAMissingValue) {
+  MouthMeasures measures;
+  measures.width_2d = 1.5;
+  measures.height_fit = std::nan("");
+  measures.open = std::numeric_limits<double>::infinity();
+  const std::array<float, kNumVisemes> visemes{};
+  const std::array<float, kNumArkit> arkit{};
+  fmt::memory_buffer row;
+  append_measures_csv_row(row, {.frame = 0, .time_s = 0, .source = "take"}, &measures, visemes, arkit, nullptr);
+  const auto table = read_csv_table(write("rows.csv", measures_csv_header(false) + "\n" + fmt::to_string(row) + "\n"));
+  EXPECT_EQ(numeric_column(table, "width_2d")[0], 1.5);
+  EXPECT_TRUE(std::isnan(numeric_column(table, "height_fit")[0]));
+  EXPECT_TRUE(std::isnan(numeric_column(table, "open")[0]));
+  EXPECT_EQ(numeric_column(table, "seal")[0], 0);
 }
 
 TEST_F(EvalPlotTest, EvalOfATableWithManyColumnsIsQuick) {

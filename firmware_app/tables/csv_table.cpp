@@ -118,8 +118,9 @@ std::vector<double> numeric_column(const CsvTable& table, std::string_view name)
     if (error != std::errc{} || end != field.data() + field.size()) {
       data_error(table, table.line_numbers[row], fmt::format("column '{}': '{}' is not a number", name, field));
     }
-    // No measure is infinite; a missing or untracked value is an empty field.
-    if (std::isinf(value)) {
+    // No measure is infinite or nan; a missing or untracked value is an empty field (as
+    // `process` and the takes write it), so a nan is not a missing value but a broken one.
+    if (!std::isfinite(value)) {
       data_error(table, table.line_numbers[row], fmt::format("column '{}': '{}' is not a finite number", name, field));
     }
     values.push_back(value);

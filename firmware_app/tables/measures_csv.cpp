@@ -1,5 +1,6 @@
 #include "firmware_app/tables/measures_csv.hpp"
 
+#include <cmath>
 #include <iterator>
 
 namespace lipdrive {
@@ -10,6 +11,16 @@ std::string csv_field(std::string_view text) {
   std::string quoted = "\"";
   for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
   return quoted + '"';
+}
+
+/// ",value" with `decimals` places; "," alone where the value is not finite: a measure the
+/// frame could not give is missing, as an untracked frame's are, and the table's readers refuse
+/// nan and inf.
+void append_value(fmt::memory_buffer& row, double value, int decimals) {
+  if (std::isfinite(value))
+    fmt::format_to(std::back_inserter(row), ",{:.{}f}", value, decimals);
+  else
+    row.push_back(',');
 }
 
 }  // namespace
@@ -33,11 +44,14 @@ void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, cons
   fmt::format_to(std::back_inserter(row), "{},{:.4f},{},", key.frame, key.time_s, csv_field(key.source));
   if (measures) {
     const MouthMeasures& m = *measures;
-    fmt::format_to(std::back_inserter(row), "1,{:.4f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.4f}",
-                   m.quality, m.width_2d, m.height_2d, m.width_fit, m.height_fit, m.width_3d, m.height_3d,
-                   m.protrusion_3d, m.open, m.seal);
-    for (const float weight : visemes) fmt::format_to(std::back_inserter(row), ",{:.4f}", weight);
-    for (const float weight : arkit) fmt::format_to(std::back_inserter(row), ",{:.4f}", weight);
+    row.push_back('1');
+    append_value(row, m.quality, 4);
+    for (const double value :
+         {m.width_2d, m.height_2d, m.width_fit, m.height_fit, m.width_3d, m.height_3d, m.protrusion_3d, m.open})
+      append_value(row, value, 6);
+    append_value(row, m.seal, 4);
+    for (const float weight : visemes) append_value(row, weight, 4);
+    for (const float weight : arkit) append_value(row, weight, 4);
   } else {
     fmt::format_to(std::back_inserter(row), "0,,,,,,,,,,");
     for (int column = 0; column < kNumVisemes + kNumArkit; ++column) row.push_back(',');
@@ -45,10 +59,7 @@ void append_measures_csv_row(fmt::memory_buffer& row, const CsvRowKey& key, cons
   if (!landmarks) return;
   for (int axis = 0; axis < 2; ++axis)
     for (int i = 0; i < kNumLandmarks; ++i) {
-      if (measures)
-        fmt::format_to(std::back_inserter(row), ",{:.3f}", (*landmarks)(axis, i));
-      else
-        row.push_back(',');
+      append_value(row, measures ? (*landmarks)(axis, i) : std::nan(""), 3);
     }
 }
 
