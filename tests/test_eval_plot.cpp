@@ -367,6 +367,14 @@ TEST_F(EvalPlotTest, EvalErrorsNameTheProblem) {
   EXPECT_EQ(rate.exit_code, 65);
   EXPECT_THAT(rate.err, HasSubstr(hurried.string() + ": its frame and time_s columns give 1e+06 frames per second"));
 
+  // A clock that stands still, and one that runs back: no rate either (both read as 25 frames/s).
+  for (const auto& [first, last] : {std::pair{"0", "0"}, std::pair{"0.08", "0.04"}}) {
+    const auto still = write("still.csv", fmt::format("frame,time_s,tracked,open\n0,{},1,0.1\n1,{},1,0.2\n", first, last));
+    const RunResult stopped = run({"eval", "--pred", still, "--align", align});
+    EXPECT_EQ(stopped.exit_code, 65) << last;
+    EXPECT_THAT(stopped.err, HasSubstr(still.string() + ": time_s of the last row")) << last;
+  }
+
   // Frames at 25, then 50, then 25 frames/s: no one rate places the words on them.
   std::string varying = "frame,time_s,tracked,open\n";
   double t = 0;

@@ -101,7 +101,13 @@ double frames_per_second(const CsvTable& table) {
   if (!has_column(table, "time_s")) return kGridFramesPerSecond;
   const std::vector<int> frames = frame_numbers(table);
   const std::vector<double> times = numeric_column(table, "time_s");
-  if (frames.size() < 2 || !(times.back() > times.front())) return kGridFramesPerSecond;
+  if (frames.size() < 2) return kGridFramesPerSecond;
+  // A clock that stands still or runs back gives no rate (it was taken for GRID's 25 frames/s).
+  if (!(times.back() > times.front()))
+    throw CommandError(fmt::format("{}: time_s of the last row ({}) is not after the first row's ({}): the table "
+                                   "gives no frame rate to place the words at",
+                                   table.path.string(), times.back(), times.front()),
+                       kExitDataError);
   const double rate = std::round(1000.0 * (frames.back() - frames.front()) / (times.back() - times.front())) / 1000;
   if (!(rate >= 1 && rate <= 1000)) {
     throw CommandError(
