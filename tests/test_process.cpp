@@ -746,6 +746,23 @@ TEST_F(ProcessTest, AnInterruptedRunLeavesTheOutputAsItWas) {
   EXPECT_NE(output(), kEarlier) << "the run that ignored SIGINT replaced the output";
 }
 
+// An output that cannot be made is EX_CANTCREAT (73), one whose writing fails EX_IOERR (74),
+// each naming the file (both were 1, the code of anything else that went wrong).
+TEST_F(ProcessTest, AnOutputThatCannotBeMadeOrWrittenHasItsOwnExitCode) {
+  const fs::path image = kFixtureDir / "astronaut.png";
+  LIPDRIVE_REQUIRE_BUILT(image);
+  const fs::path folder = dir_ / "folder.csv";
+  fs::create_directory(folder);
+  const ProcessRun made = run_process(fmt::format("{} --out {}", image.string(), folder.string()), dir_);
+  EXPECT_EQ(made.exit_code, 73) << made.stderr_text;
+  EXPECT_NE(made.stderr_text.find(folder.string() + ": cannot open for writing"), std::string::npos)
+      << made.stderr_text;
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full here to fail a write";
+  const ProcessRun full = run_process(fmt::format("{} --out /dev/full", image.string()), dir_);
+  EXPECT_EQ(full.exit_code, 74) << full.stderr_text;
+  EXPECT_NE(full.stderr_text.find("/dev/full: write failed"), std::string::npos) << full.stderr_text;
+}
+
 // --out through a symbolic link replaces the file it points to and keeps the link; --out to
 // something that is not a file (/dev/stdout, a FIFO) is written straight through.
 TEST_F(ProcessTest, AnOutputThroughALinkOrToAStreamIsWrittenWhereItPoints) {

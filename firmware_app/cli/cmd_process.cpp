@@ -430,7 +430,7 @@ void run_process(const ProcessOptions& options) {
   // below); with none, the file stays as it was.
   if (!file) {
     out.flush();
-    if (!out) throw CommandError("stdout: write failed");
+    if (!out) throw CommandError("stdout: write failed", kExitIoError);
   } else if (rows > 0) {
     file->commit();
   }

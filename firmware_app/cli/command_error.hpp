@@ -11,6 +11,8 @@ inline constexpr int kExitFailure = 1;
 inline constexpr int kExitUsage = 64;      // EX_USAGE: the command line is wrong
 inline constexpr int kExitDataError = 65;  // EX_DATAERR: input is malformed
 inline constexpr int kExitNoInput = 66;    // EX_NOINPUT: input missing or unreadable
+inline constexpr int kExitCantCreate = 73;  // EX_CANTCREAT: an output file cannot be made
+inline constexpr int kExitIoError = 74;     // EX_IOERR: writing an output failed (a full disk)
 inline constexpr int kExitConfig = 78;     // EX_CONFIG: bad configuration
 
 class CommandError : public std::runtime_error {

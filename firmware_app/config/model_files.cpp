@@ -71,7 +71,9 @@ FileReplacement::FileReplacement(std::filesystem::path path) : path_(std::move(p
     if (path_.has_parent_path()) std::filesystem::create_directories(path_.parent_path(), ec);
     out_.open(temp_, std::ios::binary | std::ios::trunc);
   }
-  if (!out_) throw CommandError(fmt::format("{}: cannot open for writing: {}", path_.string(), std::strerror(errno)));
+  if (!out_)
+    throw CommandError(fmt::format("{}: cannot open for writing: {}", path_.string(), std::strerror(errno)),
+                       kExitCantCreate);
 }
 
 FileReplacement::~FileReplacement() {
@@ -83,12 +85,13 @@ FileReplacement::~FileReplacement() {
 
 void FileReplacement::commit() {
   out_.flush();
-  if (!out_) throw CommandError(fmt::format("{}: write failed (disk full?)", path_.string()));
+  if (!out_) throw CommandError(fmt::format("{}: write failed (disk full?)", path_.string()), kExitIoError);
   out_.close();
   if (!temp_.empty()) {
     std::error_code ec;
     std::filesystem::rename(temp_, path_, ec);
-    if (ec) throw CommandError(fmt::format("{}: cannot replace the file: {}", path_.string(), ec.message()));
+    if (ec)
+      throw CommandError(fmt::format("{}: cannot replace the file: {}", path_.string(), ec.message()), kExitIoError);
   }
   committed_ = true;
 }
