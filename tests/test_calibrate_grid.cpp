@@ -71,7 +71,7 @@ TEST(CalibrateGrid, ProfileFromATakeSpansTheChannelAndRestsInSilence) {
   for (char buffer[256]; std::fgets(buffer, sizeof buffer, pipe);) output += buffer;
   ASSERT_EQ(::pclose(pipe), 0) << output;
   EXPECT_NE(output.find("performer grid"), std::string::npos) << output;
-  const PerformerProfile profile = load_profile(dir / "grid.toml");
+  const PerformerProfile profile = load_profile(dir / "grid.toml", "grid");
   EXPECT_TRUE(profile.calibrated);
   ASSERT_TRUE(profile.face_indices.has_value()) << "the neutral face's indices (docs/method.md 6)";
   EXPECT_GT((*profile.face_indices)[kVerticalMouthHeightIndex], 5);
@@ -150,7 +150,7 @@ TEST(CalibrateGrid, TheIctHeadKeepsThePerformersIdentityAndTheFitUsesIt) {
                                     test::kLipdrive, (dir / "calibrate.toml").string(), kTake.string()));
   ASSERT_EQ(calibrate.exit_code, 0) << calibrate.output;
   EXPECT_THAT(calibrate.output, ::testing::HasSubstr("identity: 20 components from 15 neutral frames"));
-  const PerformerProfile profile = load_profile(dir / "grid.toml");
+  const PerformerProfile profile = load_profile(dir / "grid.toml", "grid");
   ASSERT_TRUE(profile.identity.has_value()) << calibrate.output;
   EXPECT_EQ(profile.identity->components, 20);
   EXPECT_EQ(profile.identity->model_fingerprint, identity_fingerprint(load_model_file(ict)));

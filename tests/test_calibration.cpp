@@ -1,8 +1,12 @@
 // Performer calibration (docs/method.md 4 "Scaled"): neutral + range of motion -> [0, 1]; the
 // profile file with the performer's identity (docs/method.md 3), and old profiles.
+#include "command_run.hpp"
 #include "core/calibration.hpp"
+#include "core/model_format.hpp"
 #include "firmware_app/cli/command_error.hpp"
+#include "firmware_app/config/model_files.hpp"
 #include "firmware_app/config/performer_profile.hpp"
+#include "fixture_paths.hpp"
 
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -124,7 +128,7 @@ class ProfileFile : public ::testing::Test {
   }
   std::string load_error(const std::string& text) {
     try {
-      load_profile(write(text));
+      load_profile(write(text), "old");
     } catch (const CommandError& e) {
       return e.what();
     }
@@ -147,7 +151,7 @@ TEST_F(ProfileFile, IdentityRoundTripsAndAVersionOneProfileStillLoads) {
   for (int e = 0; e < 53; ++e) identity.rest[static_cast<std::size_t>(e)] = 0.013f * static_cast<float>(e);
   profile.identity = identity;
   save_profile(dir_ / "a.toml", "a", profile);
-  const PerformerProfile loaded = load_profile(dir_ / "a.toml");
+  const PerformerProfile loaded = load_profile(dir_ / "a.toml", "a");
   ASSERT_TRUE(loaded.identity.has_value());
   EXPECT_EQ(loaded.identity->model_fingerprint, 0xF00DCAFEu);
   EXPECT_EQ(loaded.identity->components, 20);
@@ -157,7 +161,7 @@ TEST_F(ProfileFile, IdentityRoundTripsAndAVersionOneProfileStillLoads) {
   EXPECT_EQ(loaded.identity->rest_weights()[52], identity.rest[52]);
   EXPECT_EQ(loaded.identity->rest_weights()[53], 0.0);
 
-  const PerformerProfile old = load_profile(write(kVersionOneProfile));
+  const PerformerProfile old = load_profile(write(kVersionOneProfile), "old");
   EXPECT_FALSE(old.identity.has_value()) << "version 1 has no identity: the mean face";
   EXPECT_DOUBLE_EQ(old.open.max, 0.35);
 }
@@ -204,6 +208,65 @@ TEST_F(ProfileFile, ANumberThatIsNotFiniteOrARangeThatRunsBackwardsIsAnErrorNami
             at + "rest.protrusion: must be a finite number, got -inf");
   EXPECT_EQ(load_error(with("max = 0.35", "max = 0.01")), at + "open.max: must be above min 0.03, got 0.01");
   EXPECT_EQ(load_error(with("max = 0.35", "max = 0.03")), at + "open.max: must be above min 0.03, got 0.03");
+}
+
+TEST_F(ProfileFile, AValueNoCalibrationMeasuresOrAnotherPerformersFileIsAnErrorNamingTheKey) {
+  using ::testing::HasSubstr;
+  const std::string v1 = kVersionOneProfile;
+  const auto with = [&v1](const std::string& from, const std::string& to) {
+    return std::string(v1).replace(v1.find(from), from.size(), to);
+  };
+  const std::string at = (dir_ / "p.toml").string() + ": key ";
+  EXPECT_EQ(load_error(with("open = 0.03", "open = 1e300")),
+            at + "rest.open: must be within ±10 (a mouth measure over the eyes-to-nose distance), got 1e+300");
+  EXPECT_EQ(load_error(with("max = 1.8", "max = 11")),
+            at + "width.max: must be within ±10 (a mouth measure over the eyes-to-nose distance), got 11");
+  EXPECT_EQ(load_error(with("min = -0.02", "min = -10.5")),
+            at + "protrusion.min: must be within ±10 (a mouth measure over the eyes-to-nose distance), got -10.5");
+  const std::string v2 = std::string(v1).replace(0, 11, "version = 2");
+  EXPECT_EQ(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5, 1e30]\n"),
+            at + "identity.alpha[1]: not a number within ±30 (standard deviations of the model's identity)");
+  EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [-30.5]\n"), HasSubstr("identity.alpha[0]"));
+  EXPECT_EQ(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [-29.5, 8]\n"), "") << "a face, if unusual";
+  EXPECT_EQ(load_error(with("performer = \"old\"", "performer = 'alice'")),
+            at + "performer: must be \"old\", the performer it is loaded for; got \"alice\"");
+  EXPECT_EQ(load_error(with("performer = \"old\"\n", "")),
+            at + "performer: must be \"old\", the performer it is loaded for; got none");
+}
+
+/// `lipdrive process` with the ICT head and the profile of `bob` carrying `identity`, fitted to it.
+test::CommandRun process_with_identity(const std::filesystem::path& dir, PerformerIdentity identity) {
+  const std::filesystem::path ict = std::filesystem::path(test::kModelDir) / "ict_face_light.lpm";
+  identity.model_fingerprint = identity_fingerprint(load_model_file(ict));
+  PerformerProfile profile;
+  profile.identity = identity;
+  save_profile(dir / "bob.toml", "bob", profile);
+  const std::filesystem::path config = dir / "lipdrive.toml";
+  std::ofstream(config) << fmt::format(
+      "[model]\nfile = \"{}\"\nlandmark_set = \"F5\"\n[performer]\nname = \"bob\"\nprofiles_dir = \"{}\"\n",
+      ict.string(), dir.string());
+  return test::run_command(fmt::format("{} process {} --config {} --out {}", test::kLipdrive, test::kClip.string(),
+                                       config.string(), (dir / "out.csv").string()));
+}
+
+// The identity's fingerprint names the model, so a coefficient or a rest weight fewer (a value
+// deleted by hand) shifts every later one onto another component: the fit quality halved.
+TEST_F(ProfileFile, AnIdentityWithoutTheModelsCountsIsAnErrorNamingTheFileAndTheKey) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  PerformerIdentity identity;
+  identity.components = 19;  // the ICT head has 20
+  const test::CommandRun short_alpha = process_with_identity(dir_, identity);
+  EXPECT_EQ(short_alpha.exit_code, 65) << short_alpha.output;
+  EXPECT_THAT(short_alpha.output,
+              ::testing::HasSubstr((dir_ / "bob.toml").string() +
+                                   ": key identity.alpha: 19 numbers, but the model of its model_fingerprint has 20 "
+                                   "identity components"));
+  identity.components = 20;
+  identity.expressions = 52;  // of 53
+  const test::CommandRun short_rest = process_with_identity(dir_, identity);
+  EXPECT_EQ(short_rest.exit_code, 65) << short_rest.output;
+  EXPECT_THAT(short_rest.output, ::testing::HasSubstr(": key identity.rest_expression: 52 numbers, but the model of "
+                                                      "its model_fingerprint has 53 expression shapes"));
 }
 
 }  // namespace

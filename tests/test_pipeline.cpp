@@ -938,10 +938,10 @@ TEST_F(RunTest, Sigusr1RecalibratesTheNeutralAndSavesTheProfile) {
   ASSERT_TRUE(daemon.wait_for_log("calibrated neutral")) << daemon.log();
   // The main thread saves the profile after the processing thread applied it.
   const auto deadline = std::chrono::steady_clock::now() + 5s;
-  PerformerProfile saved = load_profile(dir_ / "alex.toml");
+  PerformerProfile saved = load_profile(dir_ / "alex.toml", "alex");
   while (saved.rest.open == 0.6 && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(50ms);
-    saved = load_profile(dir_ / "alex.toml");
+    saved = load_profile(dir_ / "alex.toml", "alex");
   }
   EXPECT_LT(saved.rest.open, 0.4) << daemon.log();
   EXPECT_NEAR(saved.open.max - saved.open.min, 0.4, 1e-6);

@@ -136,7 +136,8 @@ std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* cl
 
 PerformerProfile load_performer(const Config& config) {
   if (config.performer.name.empty()) return PerformerProfile{};
-  const PerformerProfile profile = load_profile(profile_path(config.performer.profiles_dir, config.performer.name));
+  const PerformerProfile profile =
+      load_profile(profile_path(config.performer.profiles_dir, config.performer.name), config.performer.name);
   spdlog::info("performer {}: open [{:.3f}, {:.3f}], width [{:.3f}, {:.3f}], protrusion [{:.3f}, {:.3f}]{}",
                config.performer.name, profile.open.min, profile.open.max, profile.width.min, profile.width.max,
                profile.protrusion.min, profile.protrusion.max,
@@ -156,6 +157,10 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   const AutoIdentity automatic{.model = loaded, .frames = model.auto_identity_frames};
   if (profile.identity && loaded->has_expressions()) {
     if (profile.identity->model_fingerprint == files.model_fingerprint(model.file)) {
+      // Only a named performer's identity was read from a file; calibrate's own was just fitted to this model.
+      if (!config.performer.name.empty())
+        check_identity_fits(profile_path(config.performer.profiles_dir, config.performer.name), *profile.identity,
+                            *loaded);
       identity = profile.identity->vector(loaded->num_components());
       rest = profile.identity->rest_weights();
     } else

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 namespace lipdrive {
@@ -20,6 +21,16 @@ namespace fs = std::filesystem;
 
 // Version 2 added [identity] (a model with expression shapes); version 1 files load as before.
 constexpr int kProfileVersion = 2;
+
+// Mouth measures are over d, the eyes-to-nose-tip distance (docs/method.md 4), and a face is some
+// 4 d from brow to chin: a rest value or a range end beyond 10 d is no mouth (GRID's calibrations
+// read at most 1.5).
+constexpr double kMaxMeasure = 10;
+
+// Identity coefficients are in standard deviations of the model's prior N(0, I) (docs/method.md
+// 2): GRID's calibrations reach 7.7 (what the landmarks' bias puts there); at 30 the prior's
+// density is e^-450 of its peak, no head the model was built from.
+constexpr double kMaxIdentitySigma = 30;
 
 [[noreturn]] void malformed(const fs::path& file, std::string_view key, std::string_view reason) {
   throw CommandError(fmt::format("{}: key {}: {}", file.string(), key, reason), kExitDataError);
@@ -34,9 +45,19 @@ double read_number(const toml::table& root, const fs::path& file, std::string_vi
   return *value;
 }
 
+/// A mouth measure (over d): a finite number within ±kMaxMeasure.
+double read_measure(const toml::table& root, const fs::path& file, std::string_view table, std::string_view key) {
+  const double value = read_number(root, file, table, key);
+  if (std::abs(value) > kMaxMeasure)
+    malformed(
+        file, fmt::format("{}.{}", table, key),
+        fmt::format("must be within ±{} (a mouth measure over the eyes-to-nose distance), got {}", kMaxMeasure, value));
+  return value;
+}
+
 /// [measure] min and max; the daemon maps min..max onto 0..1, so min must be below max.
 MeasureRange read_range(const toml::table& root, const fs::path& file, std::string_view measure) {
-  const MeasureRange range{read_number(root, file, measure, "min"), read_number(root, file, measure, "max")};
+  const MeasureRange range{read_measure(root, file, measure, "min"), read_measure(root, file, measure, "max")};
   if (!(range.min < range.max))
     malformed(file, fmt::format("{}.max", measure), fmt::format("must be above min {}, got {}", range.min, range.max));
   return range;
@@ -56,7 +77,10 @@ PerformerIdentity read_identity(const toml::table& table, const fs::path& file) 
               fmt::format("missing, or not an array of 1 to {} numbers", identity.alpha.size()));
   for (std::size_t i = 0; i < alpha->size(); ++i) {
     const auto value = (*alpha)[i].value<double>();
-    if (!value || !std::isfinite(*value)) malformed(file, fmt::format("identity.alpha[{}]", i), "not a finite number");
+    if (!value || !(std::abs(*value) <= kMaxIdentitySigma))
+      malformed(
+          file, fmt::format("identity.alpha[{}]", i),
+          fmt::format("not a number within ±{} (standard deviations of the model's identity)", kMaxIdentitySigma));
     identity.alpha[i] = static_cast<float>(*value);
   }
   identity.components = static_cast<int>(alpha->size());
@@ -103,7 +127,7 @@ fs::path profile_path(const fs::path& dir, const std::string& performer) {
   return dir / (performer + ".toml");
 }
 
-PerformerProfile load_profile(const fs::path& file) {
+PerformerProfile load_profile(const fs::path& file, const std::string& performer) {
   toml::table root;
   try {
     root = toml::parse_file(file.string());
@@ -114,8 +138,8 @@ PerformerProfile load_profile(const fs::path& file) {
   if (!version || *version < 1 || *version > kProfileVersion)
     malformed(file, "version", fmt::format("must be 1 to {}", kProfileVersion));
   PerformerProfile profile;
-  profile.rest = {read_number(root, file, "rest", "open"), read_number(root, file, "rest", "width"),
-                  read_number(root, file, "rest", "protrusion")};
+  profile.rest = {read_measure(root, file, "rest", "open"), read_measure(root, file, "rest", "width"),
+                  read_measure(root, file, "rest", "protrusion")};
   profile.open = read_range(root, file, "open");
   profile.width = read_range(root, file, "width");
   profile.protrusion = read_range(root, file, "protrusion");
@@ -129,8 +153,26 @@ PerformerProfile load_profile(const fs::path& file) {
     if (*version < 2) malformed(file, "identity", "needs version 2");
     profile.identity = read_identity(*identity, file);
   }
+  // Another performer's file under this name (copied, renamed) would drive the figure with their ranges and face.
+  const std::optional<std::string> named = root["performer"].value<std::string>();
+  if (named != performer)
+    malformed(file, "performer",
+              fmt::format("must be \"{}\", the performer it is loaded for; got {}", performer,
+                          named ? fmt::format("\"{}\"", *named) : "none"));
   profile.calibrated = true;
   return profile;
+}
+
+void check_identity_fits(const fs::path& file, const PerformerIdentity& identity, const MorphableModel& model) {
+  const int components = std::min(model.num_components(), kMaxFitComponents);
+  if (identity.components != components)
+    malformed(file, "identity.alpha",
+              fmt::format("{} numbers, but the model of its model_fingerprint has {} identity components",
+                          identity.components, components));
+  if (identity.expressions != 0 && identity.expressions != model.num_expressions())
+    malformed(file, "identity.rest_expression",
+              fmt::format("{} numbers, but the model of its model_fingerprint has {} expression shapes",
+                          identity.expressions, model.num_expressions()));
 }
 
 Compatibility model_compatibility(const PerformerProfile& profile, const MorphableModel& model) {

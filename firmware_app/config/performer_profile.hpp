@@ -13,8 +13,17 @@ namespace lipdrive {
 /// file name (letters, digits, '-', '_', '.').
 std::filesystem::path profile_path(const std::filesystem::path& dir, const std::string& performer);
 
-/// Throws CommandError (exit 65) naming the file and the key when it is missing or malformed.
-PerformerProfile load_profile(const std::filesystem::path& file);
+/// The profile of `performer` in `file`. Throws CommandError (exit 65) naming the file and the key
+/// when one is missing or malformed, out of what a calibration measures, or the file is another
+/// performer's.
+PerformerProfile load_profile(const std::filesystem::path& file, const std::string& performer);
+
+/// An identity whose model_fingerprint is `model`'s was fitted to it, and a fit gives every
+/// component (up to kMaxFitComponents) and every expression shape a value: another count is a
+/// damaged file. Throws CommandError (exit 65) naming `file` (where the identity was read) and
+/// the key.
+void check_identity_fits(const std::filesystem::path& file, const PerformerIdentity& identity,
+                         const MorphableModel& model);
 
 /// Writes atomically (temporary file + rename), so a power cut leaves the old or the new
 /// profile, never half of one. Creates the directory. Throws CommandError on failure.

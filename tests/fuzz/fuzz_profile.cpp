@@ -5,7 +5,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
-    lipdrive::load_profile(lipdrive::fuzz::input_file(data, size, ".toml"));
+    lipdrive::load_profile(lipdrive::fuzz::input_file(data, size, ".toml"), "alex");  // the seeds' performer
   } catch (const lipdrive::CommandError&) {
   }
   return 0;
