@@ -1,9 +1,11 @@
 #include "core/voice_model.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 namespace lipdrive {
 namespace {
@@ -17,6 +19,64 @@ bool finite(const std::array<float, N>& values) {
 
 // The most context a model may hold: two seconds back, 200 ms ahead.
 constexpr double kMaxPastS = 2.0, kMaxLookaheadS = 0.2;
+
+// A feature is the log of a mel band energy, floored at 1e-10 (ln: -23.0) and, for sound in
+// [-1, 1], far below 1e10 (+23.0), or a cepstrum of those logs, whose orthonormal DCT keeps their
+// norm: |c| <= sqrt(64 bands) · 23.0 = 184 (audio_features.cpp). Their training mean lies within
+// that, their standard deviation below it (GRID speech: |mean| <= 62, scale <= 14.3 at 64 bands).
+constexpr float kMaxFeatureMagnitude = 200;
+// Training floors each feature's variance at 1e-12, its scale at 1e-6; a tenth of that is the margin.
+constexpr float kMinFeatureScale = 1e-7f;
+// The inputs are standardised and the targets are measures over d spread by less than 1 d (seal
+// within [0, 1]): ridge weights stay below 1 (GRID: 0.27 at --ridge 0 on a single clip), and Adam
+// (beta1 0.9, beta2 0.999) moves a weight by at most 3.2 learning rates a step: 3.2e5 at `voice
+// train`'s largest --learning-rate 1 over its most --epochs, 100000 (GRID at --hidden 256
+// --learning-rate 1 --epochs 3000: 66). Biases alike. A weight of 1e7 would move the mouth 1e7 d
+// for one standard deviation of one feature.
+constexpr float kMaxVoiceWeight = 1e7f;
+// Centre and rest are mouth measures over d, the eyes-to-nose-tip distance (docs/method.md 4):
+// the face is some 4 d from brow to chin (GRID: at most 1.4).
+constexpr float kMaxVoiceMeasure = 10;
+
+/// The shortest decimal that reads back as `value`: 1e+38, not std::to_string's 39 digits.
+std::string decimal(float value) {
+  char text[32];
+  return {text, std::to_chars(text, text + sizeof text, value).ptr};
+}
+
+/// "WHAT[i] is V, beyond ±BOUND" (WHAT[r, c] for a matrix) for the first value beyond `bound`, or "".
+std::string beyond(std::string_view what, const Eigen::MatrixXf& values, float bound) {
+  for (Eigen::Index r = 0; r < values.rows(); ++r)
+    for (Eigen::Index c = 0; c < values.cols(); ++c)
+      if (std::abs(values(r, c)) > bound)
+        return std::string(what) + '[' + std::to_string(r) + (values.cols() > 1 ? ", " + std::to_string(c) : "") +
+               "] is " + decimal(values(r, c)) + ", beyond ±" + decimal(bound);
+  return "";
+}
+
+/// The first value of the model that no training produces (the bounds above), or "".
+std::string implausible_value(const VoiceModel& m) {
+  const auto measures = [](const std::array<float, kNumVoiceTargets>& values) {
+    return Eigen::Map<const Eigen::VectorXf>(values.data(), kNumVoiceTargets);
+  };
+  const std::tuple<const char*, Eigen::MatrixXf, float> bounded[] = {
+      {"feature mean", m.feature_mean, kMaxFeatureMagnitude},
+      {"feature scale", m.feature_scale, kMaxFeatureMagnitude},
+      {"hidden weights", m.hidden_weights, kMaxVoiceWeight},
+      {"hidden bias", m.hidden_bias, kMaxVoiceWeight},
+      {"weights", m.weights, kMaxVoiceWeight},
+      {"bias", m.bias, kMaxVoiceWeight},
+      {"centre", measures(m.centre), kMaxVoiceMeasure},
+      {"rest", measures(m.rest), kMaxVoiceMeasure}};
+  const std::string reason = ": no training produces that";
+  for (const auto& [what, values, bound] : bounded)
+    if (const std::string problem = beyond(what, values, bound); !problem.empty()) return problem + reason;
+  if (m.feature_scale.minCoeff() < kMinFeatureScale)
+    return "feature scale " + decimal(m.feature_scale.minCoeff()) + " is below " + decimal(kMinFeatureScale) + reason;
+  if (!std::ranges::all_of(m.gain, [](float g) { return g >= kMinVoiceGain && g <= kMaxVoiceGain; }))
+    return "a gain outside " + decimal(kMinVoiceGain) + ".." + decimal(kMaxVoiceGain) + reason;
+  return "";
+}
 
 }  // namespace
 
@@ -58,7 +118,7 @@ std::string invalid_voice_model(const VoiceModel& m) {
   if (!finite(m.centre) || !finite(m.gain) || !finite(m.rest)) return "output scaling not finite";
   if (!(m.smoothing_s >= 0 && m.smoothing_s < 10 && m.gate_s >= 0 && m.gate_s < 10))
     return "smoothing or gate time out of range";
-  return "";
+  return implausible_value(m);
 }
 
 VoicePredictor::VoicePredictor(const VoiceModel& model) : model_(model), activity_(model.activity) {

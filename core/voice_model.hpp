@@ -42,6 +42,9 @@ struct VoiceContext {
 
 inline constexpr int kMaxVoiceTaps = 64;
 inline constexpr int kMaxVoiceHidden = 256;
+/// Training's output gains lie in this range (voice_training.cpp): a gain is clamped rather
+/// than multiply a nearly flat prediction without end.
+inline constexpr float kMinVoiceGain = 0.25f, kMaxVoiceGain = 4.0f;
 
 struct VoiceModel {
   AudioFeatureSettings features;
@@ -64,7 +67,8 @@ struct VoiceModel {
   double delay_s() const;
 };
 
-/// Why the parts of a model do not fit together (sizes, finite values, ranges), or "".
+/// Why the parts of a model do not fit together (sizes, finite values, ranges), or holds a
+/// value no training produces (voice_model.cpp gives each bound's reason), or "".
 std::string invalid_voice_model(const VoiceModel& model);
 
 /// One prediction: the measures at feature frame `frame` (its window's centre).

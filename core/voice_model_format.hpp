@@ -22,7 +22,8 @@
 //                   f32 smoothing_s, f32 gate_s
 //
 // The file ends exactly at the end of the payload; every size is checked against the payload
-// length before anything is allocated, and the model is validated (invalid_voice_model).
+// length before anything is allocated, and the model is validated (invalid_voice_model: sizes,
+// finite values, and none beyond what training produces).
 #pragma once
 
 #include "core/voice_model.hpp"

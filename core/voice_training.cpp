@@ -324,7 +324,8 @@ VoiceModel train_voice_model(std::span<const VoiceRecording> given, const VoiceT
   for (std::size_t k = 0; k < kNumVoiceTargets; ++k) {
     model.centre[k] = static_cast<float>(truth_sum[k] / static_cast<double>(speech_frames));
     model.gain[k] = predicted_variance[k] > 0
-                        ? static_cast<float>(std::clamp(std::sqrt(truth_variance[k] / predicted_variance[k]), 0.25, 4.0))
+                        ? static_cast<float>(std::clamp(std::sqrt(truth_variance[k] / predicted_variance[k]),
+                                                        double{kMinVoiceGain}, double{kMaxVoiceGain}))
                         : 1.0f;
   }
   return model;

@@ -13,6 +13,7 @@
 #include <aubio/aubio.h>
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <functional>
 #include <numbers>
@@ -452,6 +453,33 @@ TEST(VoiceModelFormat, ImpossibleSizesAndValuesAreRejectedBeforeAllocating) {
               for (int i = 0; i < 4; ++i) b[b.size() - 4 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(nan >> (8 * i));
             })).find("voice.lpv: "),
             std::string::npos);
+}
+
+/// `good` with the float at file offset `at` set to `value` and the checksum made right again.
+std::vector<std::uint8_t> with_float(const std::vector<std::uint8_t>& good, std::size_t at, float value) {
+  return rewritten(good, [&](auto& b) {
+    const auto bits = std::bit_cast<std::uint32_t>(value);
+    for (std::size_t i = 0; i < 4; ++i) b[at + i] = static_cast<std::uint8_t>(bits >> (8 * i));
+  });
+}
+
+// Values behind a good checksum that no training produces: a feature mean of 1e38 made every
+// `lipdrive process --voice` row read about 1e36.
+TEST(VoiceModelFormat, AValueNoTrainingProducesIsAnErrorNamingTheFile) {
+  const std::vector<std::uint8_t> good = serialize_voice_model(small_trained_model());
+  EXPECT_EQ(format_error(good), "") << "a trained model is within every bound";
+  // The feature means follow 18 four-byte fields, the fifth the cepstra: the features' dimensions.
+  const std::size_t means = kVoiceHeaderSize + 18 * 4, dims = good[kVoiceHeaderSize + 4 * 4];
+  const std::string why = ": no training produces that";
+  EXPECT_EQ(format_error(with_float(good, means + 7 * 4, 1e38f)),
+            "voice.lpv: feature mean[7] is 1e+38, beyond ±200" + why);
+  EXPECT_EQ(format_error(with_float(good, means + dims * 4, 1e-9f)),
+            "voice.lpv: feature scale 1e-09 is below 1e-07" + why);
+  EXPECT_EQ(format_error(with_float(good, means + 2 * dims * 4, -1e8f)),
+            "voice.lpv: hidden weights[0, 0] is -1e+08, beyond ±1e+07" + why);
+  // The file ends with centre, gain and rest (4 each), the smoothing and the gate time.
+  EXPECT_EQ(format_error(with_float(good, good.size() - 10 * 4, 100)), "voice.lpv: a gain outside 0.25..4" + why);
+  EXPECT_EQ(format_error(with_float(good, good.size() - 6 * 4, 50)), "voice.lpv: rest[0] is 50, beyond ±10" + why);
 }
 
 // ---- the metric ---------------------------------------------------------------------------
