@@ -90,6 +90,7 @@ struct VideoFile::Decoder {
   int stream = -1;
   bool draining = false;    // the demuxer is at its end; the decoder gives back what it holds
   bool packet_cut = false;  // the picture's packet read last came short of the size the file gave it
+  bool concealed = false;   // the decoder patched over damage in the picture received last
   std::string damage;       // what went wrong where the pictures ended; empty at a clean end
 
   [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
@@ -114,15 +115,23 @@ struct VideoFile::Decoder {
   bool next() {
     for (;;) {
       const int received = avcodec_receive_frame(codec.get(), picture.get());
-      if (received == 0) return true;
+      if (received == 0) {
+        concealed = picture->decode_error_flags != 0;
+        return true;
+      }
       if (received != AVERROR(EAGAIN)) {
-        if (received != AVERROR_EOF) damage = fmt::format("cannot decode further: {}", error_text(received));
+        if (received != AVERROR_EOF)
+          damage = fmt::format("cannot decode further: {}", error_text(received));
+        else if (damage.empty() && concealed)
+          damage = "the file ends inside its last picture";
         return false;
       }
       if (draining) return false;
       const int read = av_read_frame(format.get(), packet.get());
       if (read < 0) {
-        // The file ending inside a packet is a file cut short, in any container.
+        // The file ending inside a packet is a file cut short, in any container. Where the
+        // demuxer's packets go through a parser (an MPEG program or transport stream), the cut
+        // packet's mark does not reach us: the decoder, patching over its last picture, tells.
         if (read != AVERROR_EOF)
           damage = fmt::format("cannot read further: {}", error_text(read));
         else if (packet_cut)

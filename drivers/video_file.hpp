@@ -84,12 +84,13 @@ class VideoFile {
   bool read(cv::Mat& gray, cv::Mat& cr);
   /// Once read() has returned false: what shows the file damaged or truncated there, empty where
   /// it simply ended. Judged from what went wrong while reading (the demuxer or the decoder
-  /// failed; the file ends inside a packet of its picture) or, where the file states exactly
+  /// failed; the file ends inside a packet of its picture, or, where FFmpeg's parser hides the
+  /// cut packet from us, the decoder patched up the last picture) or, where the file states exactly
   /// how many frames its picture shows (an AVI's or MP4's frame count, as an MP4's edit list
   /// shows them) or where it ends (a Matroska track's DURATION), frames ending short of it (the
   /// last frame's time and the gap before it more than a period short of that end). Not from
   /// the file's length, which its sound may outlast, nor from durations FFmpeg estimates (an
-  /// MPEG program or transport stream states none: one cut between its packets ends as a
+  /// MPEG program or transport stream states none: one cut between its pictures ends as a
   /// shorter one does).
   const std::string& damage() const;
   /// How the frame read last is meant to be seen.

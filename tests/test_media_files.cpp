@@ -74,6 +74,15 @@ cv::Mat shown(const cv::Mat& plane, DisplayOrientation orientation) {
   return out;
 }
 
+/// Reads `file` to its end: the frames read into `frames`, and what damage() says there.
+std::string read_to_end(const fs::path& file, int& frames) {
+  VideoFile video(file);
+  cv::Mat gray, cr;
+  frames = 0;
+  while (video.read(gray, cr)) ++frames;
+  return video.damage();
+}
+
 class MediaFilesTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -153,20 +162,33 @@ TEST_F(MediaFilesTest, AVariableRateMatroskaClipEndingSlowerIsWholeWhereItsFrame
       "-bsf:v \"setts=duration=if(eq(N\\,{})\\,150\\,DURATION)\" {}",
       test::kClip.string(), kFrames, kFast, kFast, kFrames - 1, clip.string()));
   ASSERT_EQ(made.exit_code, 0) << made.output;
-  const auto read_all = [](const fs::path& file, int& frames) {
-    VideoFile video(file);
-    cv::Mat gray, cr;
-    frames = 0;
-    while (video.read(gray, cr)) ++frames;
-    return video.damage();
-  };
   {
     VideoFile video(clip);
     EXPECT_DOUBLE_EQ(video.frame_rate(), 25);
   }
   int frames = 0;
-  EXPECT_EQ(read_all(clip, frames), "");
+  EXPECT_EQ(read_to_end(clip, frames), "");
   EXPECT_EQ(frames, kFrames);
+}
+
+// An MPEG program stream (GRID's clips) states no length, and its packets reach the decoder
+// through FFmpeg's parser, which drops the demuxer's mark on a packet the file cuts short: cut
+// inside a picture, it is told by the decoder patching up that last picture. Whole, it ends
+// cleanly.
+TEST_F(MediaFilesTest, AnMpegProgramStreamCutInsideAPictureIsDamaged) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  constexpr int kFrames = 50;
+  const fs::path whole = dir_ / "whole.mpg", cut = dir_ / "cut.mpg";
+  ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-i {} -frames:v {} -an -c:v mpeg1video -q:v 4 -f mpeg {}",
+                                             test::kClip.string(), kFrames, whole.string())));
+  int frames = 0;
+  EXPECT_EQ(read_to_end(whole, frames), "");
+  EXPECT_EQ(frames, kFrames);
+  fs::copy_file(whole, cut);
+  fs::resize_file(cut, fs::file_size(whole) / 2);
+  EXPECT_EQ(read_to_end(cut, frames), "the file ends inside its last picture");
+  EXPECT_GT(frames, 5);
+  EXPECT_LT(frames, kFrames);
 }
 
 TEST_F(MediaFilesTest, ImagesReadAsOpenCvReadsThem) {
