@@ -15,6 +15,7 @@ extern "C" {
 #include <cmath>
 #include <cstdlib>
 #include <string_view>
+#include <utility>
 
 namespace lipdrive {
 
@@ -77,6 +78,12 @@ std::optional<double> stated_end_s(const AVStream& video) {
   return static_cast<double>(std::max<std::int64_t>(end - start, 0)) / AV_TIME_BASE;
 }
 
+/// The frames missing between a frame at `previous_s` shown for `shown_for_s` and the next one at
+/// `time_s`, at `rate` frames a second (rounded: timestamps are coded to a clock tick).
+std::int64_t frames_missing_between(double previous_s, double shown_for_s, double time_s, double rate) {
+  return std::max<std::int64_t>(std::llround((time_s - previous_s - shown_for_s) * rate), 0);
+}
+
 }  // namespace
 
 /// The demuxer, the decoder and the packet and picture they share.
@@ -108,6 +115,13 @@ struct VideoFile::Decoder {
     const AVStream* video = format->streams[stream];
     const std::int64_t start = video->start_time == AV_NOPTS_VALUE ? 0 : video->start_time;
     return static_cast<double>(pts - start) * av_q2d(video->time_base);
+  }
+
+  /// How long the decoded picture is shown in seconds (a picture repeated by pulldown longer than
+  /// a period); none where the stream does not say.
+  std::optional<double> picture_duration_s() const {
+    if (picture->pkt_duration <= 0) return std::nullopt;
+    return static_cast<double>(picture->pkt_duration) * av_q2d(format->streams[stream]->time_base);
   }
 
   /// The next decoded picture; false at the end (or where a damaged file stops decoding, saying
@@ -206,6 +220,8 @@ VideoFile::VideoFile(const std::filesystem::path& file) : decoder_(std::make_uni
   } else if (frame_rate_ > 0) {
     frame_count_ = std::llround(length_s_ * frame_rate_);
   }
+  const std::string_view container = format->iformat->name;
+  gaps_are_losses_ = container == "mpeg" || container == "mpegts";
   stated_frames_ = stated_frames(*format, *video, rate);
   if (stated_frames_ == 0) stated_end_s_ = stated_end_s(*video);
 }
@@ -228,11 +244,21 @@ bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
       d.damage = fmt::format("the file states {} frames", stated_frames_);
     else if (d.damage.empty() && stated_end_s_ && period_s > 0 && reached_s + period_s < *stated_end_s_)
       d.damage = fmt::format("the file states its picture lasts {:.3f} s", *stated_end_s_);
+    else if (d.damage.empty() && lost_in_gaps_ > 0)
+      d.damage = fmt::format("{} frames are missing where its timestamps jump (the first gap after {:.3f} s)",
+                             lost_in_gaps_, *first_gap_s_);
     return false;
   }
   d.check_size(d.picture->width, d.picture->height);
   previous_time_s_ = frame_time_s_;
   frame_time_s_ = d.picture_time_s();
+  const double previous_shown_for_s = std::exchange(shown_for_s_, d.picture_duration_s().value_or(1 / frame_rate_));
+  if (gaps_are_losses_ && previous_time_s_ && frame_time_s_ && frame_rate_ > 0) {
+    const std::int64_t missing =
+        frames_missing_between(*previous_time_s_, previous_shown_for_s, *frame_time_s_, frame_rate_);
+    if (missing > 0 && !first_gap_s_) first_gap_s_ = previous_time_s_;
+    lost_in_gaps_ += missing;
+  }
   const std::int64_t slot = frame_time_s_ && frame_rate_ > 0 ? std::llround(*frame_time_s_ * frame_rate_) : -1;
   frame_index_ = std::max(frame_index_ + 1, slot);
   const AVRational sample_aspect =

@@ -91,7 +91,8 @@ class VideoFile {
   /// last frame's time and the gap before it more than a period short of that end). Not from
   /// the file's length, which its sound may outlast, nor from durations FFmpeg estimates (an
   /// MPEG program or transport stream states none: one cut between its pictures ends as a
-  /// shorter one does).
+  /// shorter one does). In an MPEG program or transport stream, also from frames missing in
+  /// the middle: a jump in its timestamps past how long the frame before is shown.
   const std::string& damage() const;
   /// How the frame read last is meant to be seen.
   DisplayOrientation orientation() const { return orientation_; }
@@ -106,6 +107,13 @@ class VideoFile {
   std::optional<double> stated_end_s_;  // where a Matroska track says its picture ends
   std::int64_t frame_index_ = -1;
   std::optional<double> frame_time_s_, previous_time_s_;  // the frame read last, and the one before
+  // An MPEG program or transport stream codes a frame for every period of its rate (a frame a
+  // camera missed is a picture repeated, not left out): a jump in its timestamps is frames lost
+  // in the file, not a recorder's empty slot.
+  bool gaps_are_losses_ = false;
+  double shown_for_s_ = 0;             // how long the frame read last is shown (a period where it says not)
+  std::int64_t lost_in_gaps_ = 0;      // frames missing where the timestamps jump
+  std::optional<double> first_gap_s_;  // the time of the frame before the first such jump
   DisplayOrientation stream_orientation_, orientation_;
 };
 

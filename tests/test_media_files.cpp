@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <random>
 #include <sstream>
 #include <string>
 #include <unistd.h>
@@ -92,6 +93,16 @@ class MediaFilesTest : public ::testing::Test {
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
+
+  /// The talking-face clip's first `frames` frames as an MPEG program stream of MPEG-1 video
+  /// (as GRID's clips are), `name` in the test's folder.
+  fs::path mpeg_program_stream(int frames, const std::string& name) {
+    const fs::path clip = dir_ / name;
+    ffmpeg(fmt::format("-i {} -frames:v {} -an -c:v mpeg1video -q:v 4 -f mpeg {}", test::kClip.string(), frames,
+                       clip.string()));
+    return clip;
+  }
+
   fs::path dir_;
 };
 
@@ -178,9 +189,9 @@ TEST_F(MediaFilesTest, AVariableRateMatroskaClipEndingSlowerIsWholeWhereItsFrame
 TEST_F(MediaFilesTest, AnMpegProgramStreamCutInsideAPictureIsDamaged) {
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   constexpr int kFrames = 50;
-  const fs::path whole = dir_ / "whole.mpg", cut = dir_ / "cut.mpg";
-  ASSERT_NO_FATAL_FAILURE(ffmpeg(fmt::format("-i {} -frames:v {} -an -c:v mpeg1video -q:v 4 -f mpeg {}",
-                                             test::kClip.string(), kFrames, whole.string())));
+  fs::path whole;
+  ASSERT_NO_FATAL_FAILURE(whole = mpeg_program_stream(kFrames, "whole.mpg"));
+  const fs::path cut = dir_ / "cut.mpg";
   int frames = 0;
   EXPECT_EQ(read_to_end(whole, frames), "");
   EXPECT_EQ(frames, kFrames);
@@ -188,6 +199,27 @@ TEST_F(MediaFilesTest, AnMpegProgramStreamCutInsideAPictureIsDamaged) {
   fs::resize_file(cut, fs::file_size(whole) / 2);
   EXPECT_EQ(read_to_end(cut, frames), "the file ends inside its last picture");
   EXPECT_GT(frames, 5);
+  EXPECT_LT(frames, kFrames);
+}
+
+// Garbage in the middle of an MPEG program stream: the demuxer finds its way past it, and the
+// frames it overwrote are a jump in the timestamps, which such a stream (a frame coded every
+// period) has nowhere else. Read as a recorder's dropped frames, they went unnoticed.
+TEST_F(MediaFilesTest, FramesGarbageTookFromAnMpegProgramStreamAreMissingNotDropped) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  constexpr int kFrames = 50;
+  fs::path clip;
+  ASSERT_NO_FATAL_FAILURE(clip = mpeg_program_stream(kFrames, "garbled.mpg"));
+  const std::uintmax_t size = fs::file_size(clip);
+  std::mt19937 random(7);
+  std::string garbage(size / 5, '\0');
+  for (char& byte : garbage) byte = static_cast<char>(random());
+  std::fstream file(clip, std::ios::in | std::ios::out | std::ios::binary);
+  file.seekp(static_cast<std::streamoff>(size * 2 / 5));
+  file.write(garbage.data(), static_cast<std::streamsize>(garbage.size()));
+  file.close();
+  int frames = 0;
+  EXPECT_THAT(read_to_end(clip, frames), HasSubstr("frames are missing where its timestamps jump"));
   EXPECT_LT(frames, kFrames);
 }
 
