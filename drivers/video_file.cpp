@@ -98,6 +98,7 @@ struct VideoFile::Decoder {
   bool draining = false;    // the demuxer is at its end; the decoder gives back what it holds
   bool packet_cut = false;  // the picture's packet read last came short of the size the file gave it
   bool concealed = false;   // the decoder patched over damage in the picture received last
+  std::int64_t refused = 0;  // the picture's packets the decoder refused: each a frame lost
   std::string damage;       // what went wrong where the pictures ended; empty at a clean end
 
   [[noreturn]] void fail(const std::string& reason) const { throw MediaError(fmt::format("{}: {}", name, reason)); }
@@ -159,7 +160,7 @@ struct VideoFile::Decoder {
       // its last frame has shown all of its picture.
       if (packet->stream_index == stream) {
         packet_cut = (packet->flags & AV_PKT_FLAG_CORRUPT) != 0;
-        avcodec_send_packet(codec.get(), packet.get());
+        refused += avcodec_send_packet(codec.get(), packet.get()) < 0;
       }
       av_packet_unref(packet.get());
     }
@@ -230,23 +231,38 @@ VideoFile::~VideoFile() = default;
 
 const std::string& VideoFile::damage() const { return decoder_->damage; }
 
+void VideoFile::judge_end() {
+  Decoder& d = *decoder_;
+  // How far the frames reached on the file's timeline: slots a recorder left empty are not
+  // missing. Against a stated end, the last frame lasts as long as the gap before it (a
+  // period where unknown), and may be shown up to a period longer.
+  const double period_s = frame_rate_ > 0 ? 1 / frame_rate_ : 0;
+  const double reached_s = frame_time_s_
+                               ? *frame_time_s_ + (previous_time_s_ ? *frame_time_s_ - *previous_time_s_ : period_s)
+                               : static_cast<double>(frame_index_ + 1) * period_s;
+  // The frames short of where the file says its picture ends; none where it does not say.
+  std::optional<std::int64_t> short_of_end;
+  if (stated_frames_ > 0)
+    short_of_end = std::max<std::int64_t>(stated_frames_ - (frame_index_ + 1), 0);
+  else if (stated_end_s_ && period_s > 0)
+    short_of_end = reached_s + period_s < *stated_end_s_ ? std::llround((*stated_end_s_ - reached_s) / period_s) : 0;
+  // The reading itself failed (a cut, a demuxer's or decoder's error): what came after is not
+  // known unless the file says how long it is.
+  const bool ended_early = !d.damage.empty();
+  if (d.damage.empty() && short_of_end.value_or(0) > 0)
+    d.damage = stated_frames_ > 0 ? fmt::format("the file states {} frames", stated_frames_)
+                                  : fmt::format("the file states its picture lasts {:.3f} s", *stated_end_s_);
+  else if (d.damage.empty() && lost_in_gaps_ > 0)
+    d.damage = fmt::format("{} frames are missing where its timestamps jump (the first gap after {:.3f} s)",
+                           lost_in_gaps_, *first_gap_s_);
+  if (!d.damage.empty() && (short_of_end || !ended_early))
+    lost_frames_ = short_of_end.value_or(0) + lost_in_gaps_ + d.refused;
+}
+
 bool VideoFile::read(cv::Mat& gray, cv::Mat& cr) {
   Decoder& d = *decoder_;
   if (!d.next()) {
-    // How far the frames reached on the file's timeline: slots a recorder left empty are not
-    // missing. Against a stated end, the last frame lasts as long as the gap before it (a
-    // period where unknown), and may be shown up to a period longer.
-    const double period_s = frame_rate_ > 0 ? 1 / frame_rate_ : 0;
-    const double reached_s = frame_time_s_
-                                 ? *frame_time_s_ + (previous_time_s_ ? *frame_time_s_ - *previous_time_s_ : period_s)
-                                 : static_cast<double>(frame_index_ + 1) * period_s;
-    if (d.damage.empty() && frame_index_ + 1 < stated_frames_)
-      d.damage = fmt::format("the file states {} frames", stated_frames_);
-    else if (d.damage.empty() && stated_end_s_ && period_s > 0 && reached_s + period_s < *stated_end_s_)
-      d.damage = fmt::format("the file states its picture lasts {:.3f} s", *stated_end_s_);
-    else if (d.damage.empty() && lost_in_gaps_ > 0)
-      d.damage = fmt::format("{} frames are missing where its timestamps jump (the first gap after {:.3f} s)",
-                             lost_in_gaps_, *first_gap_s_);
+    judge_end();
     return false;
   }
   d.check_size(d.picture->width, d.picture->height);

@@ -94,11 +94,20 @@ class VideoFile {
   /// shorter one does). In an MPEG program or transport stream, also from frames missing in
   /// the middle: a jump in its timestamps past how long the frame before is shown.
   const std::string& damage() const;
+  /// Once damage() says something: how many of the picture's frames were lost, where that can
+  /// be known (frames short of those the file states or of where it says it ends, frames missing
+  /// where an MPEG stream's timestamps jump, packets the decoder refused); none where the file
+  /// ends early and does not say how long it is (an MPEG program stream or FLV file cut short).
+  std::optional<std::int64_t> lost_frames() const { return lost_frames_; }
   /// How the frame read last is meant to be seen.
   DisplayOrientation orientation() const { return orientation_; }
 
  private:
   struct Decoder;
+  // At the end of the pictures: damage() from the frames short of the file's stated end or
+  // missing in its gaps, and lost_frames().
+  void judge_end();
+
   std::unique_ptr<Decoder> decoder_;
   double frame_rate_ = 0;
   std::int64_t frame_count_ = 0;
@@ -114,6 +123,7 @@ class VideoFile {
   double shown_for_s_ = 0;             // how long the frame read last is shown (a period where it says not)
   std::int64_t lost_in_gaps_ = 0;      // frames missing where the timestamps jump
   std::optional<double> first_gap_s_;  // the time of the frame before the first such jump
+  std::optional<std::int64_t> lost_frames_;
   DisplayOrientation stream_orientation_, orientation_;
 };
 

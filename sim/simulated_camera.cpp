@@ -201,8 +201,7 @@ GrabStatus SimulatedCamera::inject_frame_faults() {
   // A dropped frame is never seen; the gap in the sequence numbers shows it.
   if (every(faults.drop_every)) return GrabStatus::kTimeout;
   if (every(faults.corrupt_every)) {
-    last_error_ = describe() + ": injected fault: frame " + std::to_string(n) + " is corrupt";
-    return GrabStatus::kCorrupt;
+    return corrupt(describe() + ": injected fault: frame " + std::to_string(n) + " is corrupt", 1);
   }
   return GrabStatus::kFrame;
 }
@@ -233,6 +232,12 @@ GrabStatus SimulatedCamera::grab(Frame& frame, std::chrono::milliseconds timeout
   return next_status_ == GrabStatus::kFrame ? inject_frame_faults() : next_status_;
 }
 
+GrabStatus SimulatedCamera::corrupt(std::string error, std::optional<std::int64_t> lost) {
+  last_error_ = std::move(error);
+  lost_frames_ = lost;
+  return GrabStatus::kCorrupt;
+}
+
 GrabStatus SimulatedCamera::read_frame(Frame& frame) {
   return kind_ == Kind::kVideo ? read_video_frame(frame) : read_image_frame(frame);
 }
@@ -240,8 +245,10 @@ GrabStatus SimulatedCamera::read_frame(Frame& frame) {
 GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
   if (!video_->read(gray_, cr_)) {
     if (video_->damage().empty() || damaged_pass_) return GrabStatus::kEndOfStream;
-    last_error_ = video_path_ + ": decoding stopped at frame " + std::to_string(video_->frame_index() + 1) + ": " +
-                  video_->damage() + " (the file is damaged or truncated)";
+    const GrabStatus status =
+        corrupt(video_path_ + ": decoding stopped at frame " + std::to_string(video_->frame_index() + 1) + ": " +
+                    video_->damage() + " (the file is damaged or truncated)",
+                video_->lost_frames());
     // Nothing after the damage is readable: the replay ends here, or a looping one (the daemon's)
     // starts over at its first frame, said once in the log.
     if (options_.loop) {
@@ -251,7 +258,7 @@ GrabStatus SimulatedCamera::read_video_frame(Frame& frame) {
     } else {
       ended_ = true;
     }
-    return GrabStatus::kCorrupt;
+    return status;
   }
   show(video_->orientation(), frame);
   // Slots the recorder left empty before this frame are slots of the replay too.
@@ -285,8 +292,7 @@ GrabStatus SimulatedCamera::read_image_frame(Frame& frame) {
   try {
     show(read_image(images_[index], gray_, cr_), frame);
   } catch (const MediaError& e) {
-    last_error_ = e.what();
-    return GrabStatus::kCorrupt;
+    return corrupt(e.what(), 1);
   }
   return GrabStatus::kFrame;
 }

@@ -80,6 +80,10 @@ class SimulatedCamera : public FrameSource {
 
   /// What went wrong with the most recent kCorrupt, if anything did.
   const std::optional<std::string>& last_error() const { return last_error_; }
+  /// How many of the recording's frames the most recent kCorrupt stands for: 1 for a picture (or
+  /// an injected fault), a damaged video's VideoFile::lost_frames(), none where that file ends
+  /// early without saying how long it is.
+  std::optional<std::int64_t> lost_frames() const { return lost_frames_; }
 
  private:
   enum class Kind { kVideo, kImages };
@@ -87,6 +91,8 @@ class SimulatedCamera : public FrameSource {
   void open_video();
   void rewind();
   GrabStatus read_frame(Frame& frame);  // kEndOfStream past the last frame
+  // kCorrupt, saying what went wrong and how many frames it stands for (lost_frames()).
+  GrabStatus corrupt(std::string error, std::optional<std::int64_t> lost);
   GrabStatus read_video_frame(Frame& frame);
   GrabStatus read_image_frame(Frame& frame);
   // gray_ and cr_ as their file means them to be seen: mirrored in place, turned into
@@ -141,6 +147,7 @@ class SimulatedCamera : public FrameSource {
   std::int64_t outage_until_ns_ = 0;  // fault injection: end of a disconnect or stall, 0 = none
   GrabStatus outage_status_ = GrabStatus::kTimeout;
   std::optional<std::string> last_error_;
+  std::optional<std::int64_t> lost_frames_;
 };
 
 }  // namespace lipdrive

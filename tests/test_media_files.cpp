@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -75,12 +76,14 @@ cv::Mat shown(const cv::Mat& plane, DisplayOrientation orientation) {
   return out;
 }
 
-/// Reads `file` to its end: the frames read into `frames`, and what damage() says there.
-std::string read_to_end(const fs::path& file, int& frames) {
+/// Reads `file` to its end: the frames read into `frames`, those lost into `lost`, and what
+/// damage() says there.
+std::string read_to_end(const fs::path& file, int& frames, std::optional<std::int64_t>* lost = nullptr) {
   VideoFile video(file);
   cv::Mat gray, cr;
   frames = 0;
   while (video.read(gray, cr)) ++frames;
+  if (lost != nullptr) *lost = video.lost_frames();
   return video.damage();
 }
 
@@ -197,9 +200,11 @@ TEST_F(MediaFilesTest, AnMpegProgramStreamCutInsideAPictureIsDamaged) {
   EXPECT_EQ(frames, kFrames);
   fs::copy_file(whole, cut);
   fs::resize_file(cut, fs::file_size(whole) / 2);
-  EXPECT_EQ(read_to_end(cut, frames), "the file ends inside its last picture");
+  std::optional<std::int64_t> lost;
+  EXPECT_EQ(read_to_end(cut, frames, &lost), "the file ends inside its last picture");
   EXPECT_GT(frames, 5);
   EXPECT_LT(frames, kFrames);
+  EXPECT_EQ(lost, std::nullopt) << "the stream does not say how long it was";
 }
 
 // Garbage in the middle of an MPEG program stream: the demuxer finds its way past it, and the
@@ -219,8 +224,10 @@ TEST_F(MediaFilesTest, FramesGarbageTookFromAnMpegProgramStreamAreMissingNotDrop
   file.write(garbage.data(), static_cast<std::streamsize>(garbage.size()));
   file.close();
   int frames = 0;
-  EXPECT_THAT(read_to_end(clip, frames), HasSubstr("frames are missing where its timestamps jump"));
+  std::optional<std::int64_t> lost;
+  EXPECT_THAT(read_to_end(clip, frames, &lost), HasSubstr("frames are missing where its timestamps jump"));
   EXPECT_LT(frames, kFrames);
+  EXPECT_EQ(lost, kFrames - frames);
 }
 
 TEST_F(MediaFilesTest, ImagesReadAsOpenCvReadsThem) {

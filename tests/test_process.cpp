@@ -889,6 +889,12 @@ TEST_F(ProcessTest, DamagedVideoKeepsTheRowsBeforeTheDamage) {
   EXPECT_LT(table.rows.size(), frame_count(source));
   const auto tracked = numeric_column(table, "tracked");
   EXPECT_EQ(tracked.front(), 1);
+  // The frames lost are those the AVI states past the rows, not the one damage that ended it.
+  EXPECT_NE(
+      run.stderr_text.find(fmt::format("{} frames could not be decoded (named above); the other {} were processed",
+                                       frame_count(source) - table.rows.size(), table.rows.size())),
+      std::string::npos)
+      << run.stderr_text;
 }
 
 }  // namespace

@@ -169,6 +169,7 @@ struct DecodedFrame {
   double media_time_s = 0;
   std::string source;
   std::string error;  // kCorrupt, kError
+  std::optional<std::int64_t> lost;  // kCorrupt: the frames it stands for (SimulatedCamera::lost_frames)
   double decode_ms = 0;
 };
 
@@ -244,6 +245,7 @@ void decode_all(SimulatedCamera& camera, Rotation rotation, FrameRing& ring) {
         case GrabStatus::kCorrupt:
           slot->kind = DecodedFrame::Kind::kCorrupt;
           slot->error = camera.last_error().value_or("a frame could not be decoded");
+          slot->lost = camera.lost_frames();
           break;
         default: slot->kind = DecodedFrame::Kind::kEnd;
       }
@@ -354,7 +356,7 @@ void run_process(const ProcessOptions& options) {
   StageTimes times;
   std::size_t rows = 0, tracked_rows = 0;
   std::optional<std::string> decode_error;  // the input stopped being readable
-  int undecoded = 0;                        // pictures or frames that could not be decoded
+  RecordingDamage damage;                   // pictures or frames that could not be decoded
   fmt::memory_buffer row;
 
   const std::int64_t start = monotonic_ns();
@@ -376,8 +378,7 @@ void run_process(const ProcessOptions& options) {
     }
     if (frame.kind == DecodedFrame::Kind::kCorrupt) {
       // Each one named as it comes (a folder may hold several); the others are processed.
-      spdlog::warn("{}", frame.error);
-      ++undecoded;
+      damage.add(frame.error, frame.lost);
       ring.release();
       continue;
     }
@@ -440,10 +441,7 @@ void run_process(const ProcessOptions& options) {
   if (decode_error)
     throw CommandError(fmt::format("{}: decoding failed after {} frames: {}", input, rows, *decode_error),
                        kExitDataError);
-  if (undecoded > 0)
-    throw CommandError(fmt::format("{}: {} {}{} could not be decoded (each named above); the other {} were processed",
-                                   input, undecoded, independent ? "picture" : "frame", undecoded == 1 ? "" : "s", rows),
-                       kExitDataError);
+  damage.check(options.input, rows, independent);
   if (rows == 0) throw CommandError(fmt::format("{}: no frames to process", input), kExitDataError);
   if (tracked_rows == 0)
     throw CommandError(fmt::format("{}: no face found in any of the {} frames{}", input, rows,

@@ -5,6 +5,7 @@
 #include "firmware_app/daemon/rotated_camera.hpp"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <memory>
@@ -25,6 +26,26 @@ SimulatedCamera open_recording(const std::filesystem::path& input) {
   } catch (const SourceError& e) {
     throw CommandError(e.what(), kExitDataError);
   }
+}
+
+void RecordingDamage::add(const std::string& error, std::optional<std::int64_t> lost) {
+  spdlog::warn("{}", error);
+  if (lost)
+    lost_ += *lost;
+  else
+    ends_early_ = true;
+}
+
+void RecordingDamage::check(const std::filesystem::path& input, std::size_t used, bool pictures) const {
+  if (lost_ == 0 && !ends_early_) return;
+  const char* kind = pictures ? "picture" : "frame";
+  const std::string lost = fmt::format("{} {}{} could not be decoded", lost_, kind, lost_ == 1 ? "" : "s");
+  if (!ends_early_)
+    throw CommandError(fmt::format("{}: {} (named above); the other {} were processed", input.string(), lost, used),
+                       kExitDataError);
+  throw CommandError(fmt::format("{}: the file ends early (named above){}; the {} {}s before its end were processed",
+                                 input.string(), lost_ > 0 ? ", and " + lost + " before it" : "", used, kind),
+                     kExitDataError);
 }
 
 void fit_take_identity(const std::filesystem::path& input, Rotation rotation, FrameProcessor& processor) {

@@ -5,13 +5,35 @@
 #include "core/image_rotation.hpp"
 #include "sim/simulated_camera.hpp"
 
+#include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <optional>
+#include <string>
 
 namespace lipdrive {
 
 /// Throws CommandError naming the path: missing or unreadable (exit 66), or not a recording
 /// (exit 65).
 SimulatedCamera open_recording(const std::filesystem::path& input);
+
+/// The frames of a recording that could not be read, told by its simulated camera's kCorrupt,
+/// and what the offline commands make of them: a recording with any is damaged (exit 65), after
+/// the frames before and around them were used.
+class RecordingDamage {
+ public:
+  /// One kCorrupt: logs what went wrong (`error`, naming the file) and counts the `lost` frames it
+  /// stands for (SimulatedCamera::lost_frames(); none: the file ends early, how much is lost
+  /// unknown).
+  void add(const std::string& error, std::optional<std::int64_t> lost);
+  /// Throws CommandError (exit 65) naming `input` when anything was added, with how many frames
+  /// were lost (`pictures`: of a folder's images) and how many `used`.
+  void check(const std::filesystem::path& input, std::size_t used, bool pictures) const;
+
+ private:
+  std::int64_t lost_ = 0;
+  bool ends_early_ = false;
+};
 
 class FrameProcessor;
 
