@@ -544,6 +544,23 @@ TEST_F(ConfigTest, OfflineCommandsTakeTheRigsConfiguration) {
   EXPECT_THAT(live.output, HasSubstr("key camera.device: no such device: /dev/video-lipdrive-missing"));
 }
 
+TEST_F(ConfigTest, CalibrateJudgesADamagedRecordingAsProcessDoes) {
+  // The clip cut in half: process called it damaged (65) while calibrate wrote a profile from
+  // the frames before the cut and exited 0.
+  write("");
+  const fs::path cut = dir_ / "cut.avi", profile = dir_ / "bob.toml";
+  fs::copy_file(kClip, cut);
+  fs::resize_file(cut, fs::file_size(kClip) / 2);
+  const test::CommandRun process = run_lipdrive(
+      fmt::format("process {} --config {} --out {}", cut.string(), file_.string(), (dir_ / "m.csv").string()));
+  EXPECT_EQ(process.exit_code, 65) << process.output;
+  const test::CommandRun calibrate = run_lipdrive(fmt::format(
+      "calibrate --config {} --performer bob --input {} --out {}", file_.string(), cut.string(), profile.string()));
+  EXPECT_EQ(calibrate.exit_code, 65) << calibrate.output;
+  EXPECT_THAT(calibrate.output, HasSubstr("frames could not be decoded (named above)"));
+  EXPECT_FALSE(fs::exists(profile)) << "no profile from a damaged recording";
+}
+
 TEST_F(ConfigTest, GpioInputBiasIsAutomaticUnlessNamed) {
   write("", "[outputs.gpio]\nenable_switch = \"GPIO24\"\n");
   EXPECT_EQ(load_config(file_).outputs.gpio.input_bias, GpioBias::kAuto) << "auto by default";

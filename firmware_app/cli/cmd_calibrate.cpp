@@ -43,17 +43,25 @@ struct CalibrateOptions {
   double motion_seconds = 10;   // live cameras; a recording runs to its end
 };
 
+/// What the capture reads.
+struct Source {
+  std::unique_ptr<FrameSource> camera;
+  SimulatedCamera* input = nullptr;  // --input's recording inside `camera`: what its kCorrupt lost
+};
+
 /// The configured camera, or the recording that stands in for it, turned as the camera is
 /// ([camera] rotation).
-std::unique_ptr<FrameSource> open_source(const Config& config, const CalibrateOptions& options) {
+Source open_source(const Config& config, const CalibrateOptions& options) {
   if (options.input.empty()) {
     // The configuration's simulated camera is a recording like --input: played once through,
     // its end ends the capture (looping, as the daemon replays it, it would never end).
     Config once = config;
     once.camera.sim.loop = false;
-    return make_source(once);
+    return {.camera = make_source(once)};
   }
-  return upright(std::make_unique<SimulatedCamera>(open_recording(options.input)), config.camera.rotation);
+  auto recording = std::make_unique<SimulatedCamera>(open_recording(options.input));
+  SimulatedCamera* input = recording.get();
+  return {.camera = upright(std::move(recording), config.camera.rotation), .input = input};
 }
 
 /// Per index, the median over the neutral frames: a blink or a mistracked frame moves nothing.
@@ -131,7 +139,7 @@ void run_calibrate(const CalibrateOptions& options) {
       options.out.empty() ? profile_path(config.performer.profiles_dir, options.performer) : options.out;
   const int neutral_frames = options.neutral_frames > 0 ? options.neutral_frames : config.performer.neutral_frames;
   const bool recording = !options.input.empty() || config.camera.type == Config::Camera::Type::kSim;
-  auto source = open_source(config, options);
+  const Source source = open_source(config, options);
   LoadedFiles files;
   // The mean face until the neutral capture gives the performer's identity (not one the
   // processor would fit of its own on the way, [model] auto_identity_frames).
@@ -146,10 +154,15 @@ void run_calibrate(const CalibrateOptions& options) {
   if (!recording) fmt::print(stderr, "Hold a relaxed, neutral face with the lips closed...\n");
   Frame frame;
   double motion_start_s = -1;
+  RecordingDamage damage;  // --input's frames that could not be read: process judges them so too
+  std::size_t frames = 0;
   for (;;) {
-    const GrabStatus status = source->grab(frame, std::chrono::milliseconds(200));
+    const GrabStatus status = source.camera->grab(frame, std::chrono::milliseconds(200));
     if (status == GrabStatus::kEndOfStream) break;
+    if (status == GrabStatus::kCorrupt && source.input)
+      damage.add(*source.input->last_error(), source.input->lost_frames());
     if (status != GrabStatus::kFrame) continue;
+    ++frames;
     const FrameMeasurement& m = processor->process(frame.gray, frame.cr);
     if (!m.tracked) continue;
     if (neutral.measures->size() < neutral_frames && !identity) {
@@ -165,7 +178,8 @@ void run_calibrate(const CalibrateOptions& options) {
     motion->add(m.measures);
     if (!recording && frame.media_time_s - motion_start_s >= options.motion_seconds) break;
   }
-  const std::string what = source->describe();
+  if (source.input) damage.check(options.input, frames, source.input->independent_frames());
+  const std::string what = source.camera->describe();
   if (neutral.measures->size() < neutral_frames)
     throw CommandError(fmt::format("{}: calibration failed: {} tracked frames, the neutral capture needs {}", what,
                                    neutral.measures->size(), neutral_frames),
