@@ -195,12 +195,14 @@ TEST_F(ProfileFile, AMalformedIdentityIsAnErrorNamingTheKey) {
               HasSubstr("key identity.model_fingerprint"));
 }
 
+/// kVersionOneProfile with its first `from` replaced by `to`.
+std::string with(const std::string& from, const std::string& to) {
+  const std::string v1 = kVersionOneProfile;
+  return std::string(v1).replace(v1.find(from), from.size(), to);
+}
+
 TEST_F(ProfileFile, ANumberThatIsNotFiniteOrARangeThatRunsBackwardsIsAnErrorNamingTheKey) {
   using ::testing::HasSubstr;
-  const std::string v1 = kVersionOneProfile;
-  const auto with = [&v1](const std::string& from, const std::string& to) {
-    return std::string(v1).replace(v1.find(from), from.size(), to);
-  };
   const std::string at = (dir_ / "p.toml").string() + ": key ";
   EXPECT_EQ(load_error(with("min = 0.03", "min = nan")), at + "open.min: must be a finite number, got nan");
   EXPECT_EQ(load_error(with("max = 1.8", "max = inf")), at + "width.max: must be a finite number, got inf");
@@ -212,10 +214,6 @@ TEST_F(ProfileFile, ANumberThatIsNotFiniteOrARangeThatRunsBackwardsIsAnErrorNami
 
 TEST_F(ProfileFile, AValueNoCalibrationMeasuresOrAnotherPerformersFileIsAnErrorNamingTheKey) {
   using ::testing::HasSubstr;
-  const std::string v1 = kVersionOneProfile;
-  const auto with = [&v1](const std::string& from, const std::string& to) {
-    return std::string(v1).replace(v1.find(from), from.size(), to);
-  };
   const std::string at = (dir_ / "p.toml").string() + ": key ";
   EXPECT_EQ(load_error(with("open = 0.03", "open = 1e300")),
             at + "rest.open: must be within ±10 (a mouth measure over the eyes-to-nose distance), got 1e+300");
@@ -223,7 +221,7 @@ TEST_F(ProfileFile, AValueNoCalibrationMeasuresOrAnotherPerformersFileIsAnErrorN
             at + "width.max: must be within ±10 (a mouth measure over the eyes-to-nose distance), got 11");
   EXPECT_EQ(load_error(with("min = -0.02", "min = -10.5")),
             at + "protrusion.min: must be within ±10 (a mouth measure over the eyes-to-nose distance), got -10.5");
-  const std::string v2 = std::string(v1).replace(0, 11, "version = 2");
+  const std::string v2 = with("version = 1", "version = 2");
   EXPECT_EQ(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [0.5, 1e30]\n"),
             at + "identity.alpha[1]: not a number within ±30 (standard deviations of the model's identity)");
   EXPECT_THAT(load_error(v2 + "[identity]\nmodel_fingerprint = 7\nalpha = [-30.5]\n"), HasSubstr("identity.alpha[0]"));
