@@ -196,6 +196,24 @@ TEST_F(EvalPlotTest, SpeechFramesAreTheWordsMergedIntoRanges) {
   for (int frame : {2, 4, 6, 10, 11}) EXPECT_TRUE(contains(speech, frame)) << frame;
 }
 
+// A bilabial word none of whose frames (widened by two each side) was tracked says so (it read "minimum nan"); a folder
+// given as a table is named as one (it read "error reading").
+TEST_F(EvalPlotTest, AnUntrackedWordAndAFolderForATableAreNamedSo) {
+  std::string csv = "frame,tracked,open\n";
+  for (std::size_t f = 0; f < kWorkedOpen.size(); ++f)
+    csv += f < 6 ? fmt::format("{},0,\n", f) : fmt::format("{},1,{}\n", f, kWorkedOpen[f]);
+  const auto pred = write("pred.csv", csv);
+  const auto align = write("take.align", kWorkedAlign);
+  const RunResult table = run({"eval", "--pred", pred, "--align", align, "--columns", "open"});
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  EXPECT_THAT(table.out, HasSubstr("\"bin\" (frames 2..3) not closed: no frame of it tracked"));
+  const fs::path folder = dir_ / "folder.csv";
+  fs::create_directory(folder);
+  const RunResult read = run({"eval", "--pred", folder.string(), "--align", align});
+  EXPECT_EQ(read.exit_code, 66);
+  EXPECT_THAT(read.err, HasSubstr(folder.string() + ": a folder, not a CSV table"));
+}
+
 TEST_F(EvalPlotTest, EvalWithAlignmentOfLongWordsAtAHighFrameRateIsQuick) {
   // Rows 1 ms apart: 1000 frames/s, and an hour of words, 200 of 18 s each: 3.6 million frames,
   // the last row at the end. Every frame of every word was enumerated into a set (200

@@ -265,6 +265,18 @@ TEST_F(ModelCommandTest, RefusesAVarianceOutsideItsRange) {
   ASSERT_EQ(run(build_args() + " --variance 1"), 0) << output_;
 }
 
+// A folder where a model file belongs, and a file where the folder of poses belongs, are named
+// for what they are (both read "no such ...", as if nothing were there).
+TEST_F(ModelCommandTest, AFolderForAFileAndAFileForAFolderAreNamedSo) {
+  EXPECT_EQ(run("model info " + (dir_ / "poses").string()), kExitNoInput);
+  EXPECT_THAT(output_, HasSubstr((dir_ / "poses").string() + ": a folder, not a model file"));
+  const std::string pose = (dir_ / "poses" / "pose0.obj").string();
+  EXPECT_EQ(run("model build --poses " + pose + " --landmarks " + (dir_ / "landmarks.toml").string() + " --out " +
+                (dir_ / "out.lpm").string()),
+            kExitNoInput);
+  EXPECT_THAT(output_, HasSubstr(pose + ": a file, not a folder of pose meshes"));
+}
+
 TEST_F(ModelCommandTest, MissingModelFileForInfo) {
   EXPECT_EQ(run("model info " + (dir_ / "none.lpm").string()), kExitNoInput);
   EXPECT_THAT(output_, HasSubstr("none.lpm"));

@@ -233,6 +233,9 @@ void print_closures(const std::vector<ColumnClosure>& results) {
     for (const WordClosure& w : m.words)
       if (w.outside)
         fmt::print("  {}: \"{}\" (frames {}..{}) outside the rows: not scored\n", column, w.word, w.first, w.last);
+      else if (std::isnan(w.minimum))
+        fmt::print("  {}: \"{}\" (frames {}..{}) not closed: no frame of it tracked\n", column, w.word, w.first,
+                   w.last);
       else if (!w.closed)
         fmt::print("  {}: \"{}\" (frames {}..{}) not closed: minimum {:.3f}\n", column, w.word, w.first, w.last,
                    w.minimum);

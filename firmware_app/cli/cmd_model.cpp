@@ -38,7 +38,10 @@ namespace fs = std::filesystem;
 // first pose (and the reference for vertex order) is the rest pose when there is one.
 std::vector<fs::path> pose_files(const fs::path& dir) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw CommandError(fmt::format("{}: no such directory", dir.string()), kExitNoInput);
+  if (!fs::is_directory(dir, ec))
+    throw CommandError(fmt::format("{}: {}", dir.string(),
+                                   fs::exists(dir, ec) ? "a file, not a folder of pose meshes" : "no such directory"),
+                       kExitNoInput);
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir))
     if (entry.is_regular_file() && entry.path().extension() == ".obj") files.push_back(entry.path());

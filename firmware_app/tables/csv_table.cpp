@@ -9,6 +9,7 @@
 #include <fstream>
 #include <limits>
 #include <optional>
+#include <system_error>
 
 namespace lipdrive {
 namespace {
@@ -58,6 +59,9 @@ std::optional<std::vector<std::string>> split_fields(std::string_view line) {
 }  // namespace
 
 CsvTable read_csv_table(const std::filesystem::path& path) {
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error))  // a folder opens, then fails to read
+    throw CommandError(fmt::format("{}: a folder, not a CSV table", path.string()), kExitNoInput);
   std::ifstream in(path);
   if (!in) throw CommandError(fmt::format("cannot open CSV file {}", path.string()), kExitNoInput);
 
