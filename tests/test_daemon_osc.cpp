@@ -178,8 +178,19 @@ port = {}
   EXPECT_GE(lines_with("malformed OSC datagram"), 1);
   lo_address_free(to);
 
+  // A burst just before the stop: what was held back in the last second is counted at the stop,
+  // since no later line carries it.
+  std::this_thread::sleep_for(1100ms);
+  const int burst = ::socket(AF_INET, SOCK_DGRAM, 0);
+  for (int i = 0; i < 50; ++i)
+    ::sendto(burst, "not osc", 7, 0, reinterpret_cast<const sockaddr*>(&control), sizeof control);
+  ::close(burst);
+  std::this_thread::sleep_for(200ms);
   daemon.signal(SIGTERM);
   ASSERT_EQ(daemon.wait(2000ms), 0) << daemon.log();
+  EXPECT_NE(daemon.log().find("malformed datagrams and bundles: 40 more held back in its last second"),
+            std::string::npos)
+      << daemon.log();
   const std::string log = daemon.log();
   const auto at = log.find("capture->wire latency, osc");
   ASSERT_NE(at, std::string::npos) << log;

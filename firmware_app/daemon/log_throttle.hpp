@@ -8,9 +8,12 @@
 
 #include "drivers/clock.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <cstdint>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace lipdrive {
@@ -33,6 +36,17 @@ class LogThrottle {
     ++logged_in_window_;
     held_back = std::exchange(held_back_, 0);
     return true;
+  }
+
+  /// When the owner stops: the count held back since the last line let through, which no later
+  /// line will carry ("WHAT: N more held back in its last second"); nothing when none was.
+  void log_held_back(std::string_view what) {
+    std::uint64_t held = 0;
+    {
+      std::lock_guard lock(mutex_);
+      held = std::exchange(held_back_, 0);
+    }
+    if (held > 0) spdlog::warn("{}: {} more held back in its last second", what, held);
   }
 
  private:

@@ -54,6 +54,8 @@ void OscControl::run() {
                    malformed ? "a malformed OSC datagram" : "a bundle (send commands as single messages)", from,
                    held_back_note(held));
   }
+  refused_log_.log_held_back(describe() + ": malformed datagrams and bundles");
+  for (LogThrottle& log : command_log_) log.log_held_back(describe() + ": commands");
 }
 
 void OscControl::handle(const OscMessage& m) {

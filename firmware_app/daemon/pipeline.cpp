@@ -81,6 +81,7 @@ void Pipeline::stop() {
   stop_processing_ = true;
   capture_.stop();
   if (processing_thread_.joinable()) processing_thread_.join();
+  frame_errors_.log_held_back("frames whose measuring threw");
   if (side_) side_->stop();
   stop_outputs_ = true;
   if (output_thread_.joinable()) output_thread_.join();

@@ -214,6 +214,7 @@ void Monitor::stop() {
   server_->stop();
   if (listener_.joinable()) listener_.join();
   if (encoder_.joinable()) encoder_.join();
+  refused_log_.log_held_back("monitor: refused commands");
 }
 
 int Monitor::authorise(const std::string& authorization) {
