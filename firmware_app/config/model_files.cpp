@@ -24,10 +24,10 @@ namespace {
 std::vector<std::uint8_t> read_bytes(const std::filesystem::path& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
-    throw CommandError(fmt::format("{}: {}", path.string(),
-                                   std::filesystem::is_directory(path, ec) ? "a folder, not a model file"
-                                                                           : "no such model file"),
-                       kExitNoInput);
+    throw CommandError(
+        fmt::format("{}: {}", path.string(),
+                    std::filesystem::is_directory(path, ec) ? "a folder, not a model file" : "no such model file"),
+        kExitNoInput);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw CommandError(fmt::format("{}: cannot open for reading", path.string()), kExitNoInput);
   std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
