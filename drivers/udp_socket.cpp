@@ -47,7 +47,7 @@ UdpEndpoint resolve_udp(const std::string& host, int port) {
   addrinfo* found = nullptr;
   const std::string service = std::to_string(port);
   if (const int error = ::getaddrinfo(host.c_str(), service.c_str(), &hints, &found); error != 0)
-    throw UdpError("host \"" + host + "\" does not resolve: " + ::gai_strerror(error));
+    throw UdpError("host \"" + host + "\" does not resolve: " + ::gai_strerror(error), error == EAI_AGAIN);
   const addrinfo& chosen = preferred_address(*found);
   UdpEndpoint endpoint;
   std::memcpy(&endpoint.address, chosen.ai_addr, chosen.ai_addrlen);

@@ -22,7 +22,14 @@ namespace lipdrive {
 /// and the reason.
 class UdpError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit UdpError(const std::string& what, bool temporary = false)
+      : std::runtime_error(what), temporary_(temporary) {}
+  /// No name server answered (getaddrinfo's EAI_AGAIN), as at boot before the network is up:
+  /// asking again later may succeed, where a name the server does not know will not.
+  bool temporary() const { return temporary_; }
+
+ private:
+  bool temporary_;
 };
 
 struct UdpEndpoint {

@@ -446,6 +446,26 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   EXPECT_THAT(folder.output, HasSubstr(dir_.string() + ": cannot read the file: not a regular file"));
 }
 
+// At boot the name server may not answer yet: a host name that cannot be looked up *now* is not
+// a mistake in the file. The daemon exits with EX_TEMPFAIL, which the unit restarts it on (it
+// stops for good on 78, as for the name no server knows: ModbusHostNames... above). A network
+// namespace of its own, with no interface up, is a machine whose network is not up yet.
+TEST_F(ConfigTest, AHostLookedUpBeforeTheNetworkIsUpIsTriedAgainNotAMistake) {
+  if (test::run_command("unshare -n true").exit_code != 0) GTEST_SKIP() << "unshare -n is not permitted here";
+  const auto check_offline = [&] {
+    return test::run_command("unshare -n " + std::string(test::kLipdrive) + " check-config " + file_.string());
+  };
+  write("", std::string(kJawChannel) + "[[outputs.osc]]\nhost = \"mixer.invalid\"\nchannels = [\"jaw\"]\n");
+  const test::CommandRun booting = check_offline();
+  EXPECT_EQ(booting.exit_code, 75) << booting.output;
+  EXPECT_THAT(booting.output, HasSubstr(file_.string() + ": key outputs.osc[0].host: host \"mixer.invalid\" does not "
+                                        "resolve: Temporary failure in name resolution; trying again"));
+  // A numeric address needs no name server.
+  write("", std::string(kJawChannel) + "[[outputs.osc]]\nhost = \"192.168.1.20\"\nchannels = [\"jaw\"]\n");
+  const test::CommandRun numeric = check_offline();
+  EXPECT_EQ(numeric.exit_code, 0) << numeric.output;
+}
+
 // A USB camera enumerated after the daemon started at boot: the daemon runs (the figure at
 // neutral, the status saying why) until it appears, instead of stopping on a configuration error
 // the service manager would not restart.

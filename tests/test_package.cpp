@@ -8,6 +8,7 @@
 #include "build_paths.hpp"
 #include "command_run.hpp"
 #include "daemon_process.hpp"
+#include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/paths.hpp"
 
 #include <gmock/gmock.h>
@@ -32,6 +33,7 @@ namespace fs = std::filesystem;
 using lipdrive::test::CommandRun;
 using lipdrive::test::run_command;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 const fs::path kArtifacts = fs::path(lipdrive::test::kBuildDir) / "test_artifacts" / "package";
 
@@ -233,6 +235,14 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   const fs::path binary = root.string() + m[1].str(), config = root.string() + m[2].str();
   EXPECT_EQ(::access(binary.c_str(), X_OK), 0) << binary;
   EXPECT_TRUE(fs::is_regular_file(config)) << config;
+  // Restarted on everything but what only an edit mends (64, 78): a name server not up yet at
+  // boot (75), a crash; with no start limit, which would leave the figure dead after a few quick
+  // restarts in a row.
+  const std::string kept_down = " " + unit_value(unit, "RestartPreventExitStatus") + " ";
+  for (const int code : {lipdrive::kExitUsage, lipdrive::kExitConfig}) EXPECT_THAT(kept_down, HasSubstr(fmt::format(" {} ", code)));
+  EXPECT_THAT(kept_down, Not(HasSubstr(fmt::format(" {} ", lipdrive::kExitTryAgain))));
+  EXPECT_EQ(unit_value(unit, "Restart"), "on-failure");
+  EXPECT_EQ(unit_value(unit, "StartLimitIntervalSec"), "0");
   // postinst: the user the unit runs as (systemd-sysusers), the unit enabled.
   const std::string user = unit_value(unit, "User");
   EXPECT_TRUE(std::regex_search(read_file(root / "etc/passwd"), std::regex("(^|\n)" + user + ":x:")))

@@ -13,6 +13,7 @@ inline constexpr int kExitDataError = 65;  // EX_DATAERR: input is malformed
 inline constexpr int kExitNoInput = 66;    // EX_NOINPUT: input missing or unreadable
 inline constexpr int kExitCantCreate = 73;  // EX_CANTCREAT: an output file cannot be made
 inline constexpr int kExitIoError = 74;     // EX_IOERR: writing an output failed (a full disk)
+inline constexpr int kExitTryAgain = 75;    // EX_TEMPFAIL: no name server answered; the unit restarts
 inline constexpr int kExitConfig = 78;     // EX_CONFIG: bad configuration
 
 class CommandError : public std::runtime_error {

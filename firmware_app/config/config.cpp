@@ -45,8 +45,11 @@ class Section {
       : file_(std::move(file)), table_(table), name_(std::move(name)) {}
 
   [[noreturn]] void fail(std::string_view key, std::string_view reason) const {
-    throw ConfigError(fmt::format("{}: key {}: {}", file_, key_path(key), reason));
+    throw ConfigError(fmt::format("{}: {}", where(key), reason));
   }
+
+  /// "FILE: key KEY".
+  std::string where(std::string_view key) const { return fmt::format("{}: key {}", file_, key_path(key)); }
 
   std::string string(std::string_view key, std::string fallback) {
     const toml::node* node = find(key);
@@ -423,7 +426,7 @@ UdpEndpoint resolved(Section& section, std::string_view key, const std::string& 
   try {
     return resolve_udp(host, port);
   } catch (const UdpError& e) {
-    section.fail(key, e.what());
+    fail_unresolved(section.where(key), e);
   }
 }
 
@@ -691,6 +694,13 @@ void read_outputs(Section outputs, Config& config) {
 }
 
 }  // namespace
+
+void fail_unresolved(const std::string& where, const UdpError& error) {
+  if (error.temporary())
+    throw CommandError(fmt::format("{}: {}; trying again is all it needs once the network is up", where, error.what()),
+                       kExitTryAgain);
+  throw ConfigError(fmt::format("{}: {}", where, error.what()));
+}
 
 Config load_config(const fs::path& file, ConfigUse use) {
   const std::string name = file.string();

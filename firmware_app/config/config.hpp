@@ -19,6 +19,7 @@
 #include "drivers/modbus_link.hpp"
 #include "drivers/ola_client.hpp"
 #include "drivers/serial_port.hpp"
+#include "drivers/udp_socket.hpp"
 #include "drivers/v4l2_camera.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/paths.hpp"
@@ -39,6 +40,12 @@ class ConfigError : public CommandError {
  public:
   explicit ConfigError(const std::string& message) : CommandError(message, kExitConfig) {}
 };
+
+/// A host named at `where` ("FILE: key KEY") that did not resolve: a ConfigError, or, when no
+/// name server answered (UdpError::temporary(): at boot before the network is up), a
+/// CommandError with kExitTryAgain, which the systemd unit restarts the daemon on, where it
+/// stops for good on a configuration error.
+[[noreturn]] void fail_unresolved(const std::string& where, const UdpError& error);
 
 /// The serial device a table names when it names none: Modbus RTU adapters are usually
 /// USB-RS-485 (ttyUSB), serial outputs microcontroller boards (USB CDC, ttyACM).

@@ -39,7 +39,7 @@ std::vector<std::unique_ptr<Output>> make_outputs(const Config& config, DriveCon
       outputs.push_back(std::make_unique<OscOutput>(options, config.channels));
     } catch (const UdpError& e) {
       // Resolved when the file was loaded; a name server that changed its mind since.
-      throw ConfigError(fmt::format("{}: key outputs.osc: {}", config.file.string(), e.what()));
+      fail_unresolved(fmt::format("{}: key outputs.osc", config.file.string()), e);
     }
   }
   if (config.outputs.gpio.enabled)
