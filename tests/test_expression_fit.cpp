@@ -316,7 +316,7 @@ TEST(ExpressionFit, RestPointFromNeutralFramesReadsZeroAtRest) {
 // the identity of them all and lets the weights go. (`lipdrive process` has the whole take and
 // fits that identity before its first row: test_process.cpp.)
 TEST(ExpressionFit, LiveTheArkitWeightsWaitForTheIdentityOfTheFirstFrames) {
-  if (!std::filesystem::exists(test::kClip)) GTEST_SKIP() << "no generated fixture " << test::kClip;
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const auto ict = std::make_shared<const MorphableModel>(
       load_model_file(std::filesystem::path(test::kModelDir) / "ict_face_light.lpm"));
   constexpr int kIdentityFrames = 20;

@@ -1017,8 +1017,9 @@ TEST(FaceTracker, SteadyStateTrackingAllocatesNothing) {
 }
 
 TEST(FaceAppearance, MatchesItselfUnderAnyExposureAndNotElsewhere) {
+  LIPDRIVE_REQUIRE_BUILT(kFixtureDir / "talking_face.avi");
   const cv::Mat face = generated_face();
-  if (face.empty()) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  ASSERT_FALSE(face.empty());
   FaceTracker tracker(test::shared_predictor());
   Landmarks2D landmarks;
   ASSERT_EQ(tracker.track(face, landmarks), TrackStatus::kAcquired);
@@ -1218,7 +1219,7 @@ void check_fault_clips(const std::vector<FaultClip>& clips) {
 
 TEST(FaceTracker, NeverTracksWhatReplacedTheGeneratedFace) {
   const auto video = kFixtureDir / "talking_face.avi";
-  if (!std::filesystem::exists(video)) GTEST_SKIP() << "no generated fixture in " << kFixtureDir;
+  LIPDRIVE_REQUIRE_BUILT(video);
   const std::vector<cv::Mat> frames = read_gray_frames(video);
   // The other face: the same portrait mirrored, so it looks different where the eyes were.
   std::vector<cv::Mat> mirrored;
@@ -1231,8 +1232,9 @@ TEST(FaceTracker, NeverTracksWhatReplacedTheGeneratedFace) {
 }
 
 TEST(FaceTracker, NeverTracksWhatReplacedAGridFace) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir / "lgaf4n.mpg");
   const auto first = grid_frames("bbaf2n"), second = grid_frames("lgaf4n");
-  if (first.empty() || second.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  ASSERT_TRUE(!first.empty() && !second.empty()) << "no frames read from " << kGridDir;
   check_fault_clips(fault_clips("GRID", first, second, 38, 120, 8));
 }
 
@@ -1241,8 +1243,9 @@ TEST(FaceTracker, NeverTracksWhatReplacedAGridFace) {
 // the mouth is hidden, until the look is taken afresh after
 // TrackerSettings::new_mouth_look_after frames; then every frame is measured.
 TEST(FaceTracker, ATrackBegunWithAHandBeforeTheMouthMeasuresTheMouthOnceItsLookIsRetaken) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir / "bbaf2n.mpg");
   const std::vector<cv::Mat> frames = grid_frames("bbaf2n");
-  if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  ASSERT_FALSE(frames.empty()) << "no frames read from " << kGridDir / "bbaf2n.mpg";
   constexpr int kLowered = 20;
   const FaultClip clip =
       mouth_hidden_clip("hand from the start", frames, clean_landmarks(frames), 0, kLowered, hand_of);
@@ -1263,8 +1266,9 @@ TEST(FaceTracker, ATrackBegunWithAHandBeforeTheMouthMeasuresTheMouthOnceItsLookI
 // frame of the hand is dropped; it took the hand's until 12-06, fifth session, and 19 of the 20
 // frames were measured as lips. The first frame after the hand is measured.
 TEST(FaceTracker, AFaceFoundAgainInPlaceKeepsItsLipsLuma) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir / "lgaf4n.mpg");
   const std::vector<cv::Mat> frames = grid_frames("lgaf4n");
-  if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+  ASSERT_FALSE(frames.empty()) << "no frames read from " << kGridDir / "lgaf4n.mpg";
   constexpr int kFrom = 20, kLength = 20;
   const FaultClip clip = mouth_hidden_clip("hand", frames, clean_landmarks(frames), kFrom, kLength, hand_of);
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor());
@@ -1309,9 +1313,10 @@ TEST(FaceTracker, LipsThatStayChangedAreTheLipsAfterAWhile) {
 // tracked 0.12-0.17 inter-ocular distances from the face (the mouth 0.22-0.29) before the
 // tracker compared the mouth with the picture mirrored beyond its edge.
 TEST(FaceTracker, NeverTracksAFaceWhoseMouthThePicturesEdgeCuts) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(kGridDir / "lgaf4n.mpg");
   for (const char* name : {"bbaf2n", "lgaf4n"}) {
     std::vector<cv::Mat> frames = grid_frames(name);
-    if (frames.empty()) GTEST_SKIP() << "no GRID clips in " << kGridDir;
+    ASSERT_FALSE(frames.empty()) << "no frames read from " << kGridDir / name;
     for (cv::Mat& frame : frames) cv::resize(frame, frame, {}, 2.0, 2.0, cv::INTER_LINEAR);
     check_fault_clips(
         {sinking_clip(fmt::format("{} at twice its size", name), frames, clean_landmarks(frames), 20, 16)});
@@ -1325,7 +1330,7 @@ TEST(FaceTracker, NeverTracksAFaceWhoseMouthThePicturesEdgeCuts) {
 // may cross; the lower face's look judges what is before them.
 TEST(FaceTracker, LipsCrossedUnderAMoustacheKeepTheTrack) {
   const auto path = test::shared_fixtures() / "lfpw_train" / "image_0267.png";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << "no LFPW photographs in " << test::shared_fixtures();
+  LIPDRIVE_SKIP_WITHOUT_SHARED(path);
   const cv::Mat photo = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
   FaceTracker still(test::shared_predictor());
   still.reset(FaceTracker::Next::kStill);

@@ -163,9 +163,10 @@ std::pair<std::string, double> bilabial_viseme_figure(const std::vector<ClipSeri
 
 TEST(LipClosureEvaluation, GridClosuresOnTuningAndCheckClips) {
   const fs::path shared = test::shared_fixtures();
+  LIPDRIVE_SKIP_WITHOUT_SHARED(shared / "grid_train");
   const std::vector<fs::path> development = files_with_extension(shared / "grid_train", ".mpg");
   const std::vector<fs::path> fixtures = files_with_extension(shared / "grid", ".mpg");
-  if (development.size() < 2 && fixtures.empty()) GTEST_SKIP() << "no GRID clips in " << shared;
+  ASSERT_GE(development.size(), 2u) << "no GRID clips in " << shared / "grid_train";
   const std::size_t tuning_count = development.size() / 2;  // the first half in file-name order
   // In colour (GRID's clips are), and in their luma alone: a monochrome camera (an infrared rig)
   // must meet the same bounds.
@@ -319,8 +320,9 @@ std::string distribution(std::vector<double> v) {
 }
 
 TEST(LipClosureEvaluation, LfpwPhotographs) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(test::shared_fixtures() / "lfpw_train");
   const std::vector<fs::path> photos = files_with_extension(test::shared_fixtures() / "lfpw_train", ".png");
-  if (photos.empty()) GTEST_SKIP() << "no LFPW photographs in " << test::shared_fixtures();
+  ASSERT_FALSE(photos.empty()) << "no photographs in " << test::shared_fixtures() / "lfpw_train";
   // Searched as `lipdrive process` searches stills: dlib's detector, then OpenCV's face cascade.
   const TrackerSettings stills{.still_cascade = load_still_cascade()};
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor(), {},
@@ -392,8 +394,9 @@ constexpr double kOffTheFace = 0.2;
 // Every photograph's take, its face `interocular_px` between the outer eye corners, tracked
 // with `tracking`; the summary printed and recorded as the test property `property`.
 void expect_steady_takes_on_the_face(double interocular_px, TrackerSettings tracking, const std::string& property) {
+  LIPDRIVE_SKIP_WITHOUT_SHARED(test::shared_fixtures() / "lfpw_train");
   const std::vector<fs::path> photos = files_with_extension(test::shared_fixtures() / "lfpw_train", ".png");
-  if (photos.empty()) GTEST_SKIP() << "no LFPW photographs in " << test::shared_fixtures();
+  ASSERT_FALSE(photos.empty()) << "no photographs in " << test::shared_fixtures() / "lfpw_train";
   constexpr int kFrames = 75;
   FrameProcessor processor(default_model(), LandmarkSet::F4, FitSettings{}, test::shared_predictor(), Eigen::VectorXf(),
                            FitOutput::Expressions::Zero(), AutoIdentity{}, tracking);

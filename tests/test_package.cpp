@@ -317,4 +317,24 @@ TEST_F(Package, InstalledIntoAScratchRootEverythingIsWhereTheUnitExpectsIt) {
   fs::remove_all(root);
 }
 
+// The manual page the package installs names every command `lipdrive --help` lists, in its
+// synopsis and among its commands ("check-config" as groff writes it, "check\-config").
+TEST(ManualPage, NamesEveryCommandTheProgramHas) {
+  const std::string page = read_file(fs::path(lipdrive::test::kSourceDir) / "packaging" / "lipdrive.1");
+  const std::string help = lipdrive::test::run_command(std::string(lipdrive::test::kLipdrive) + " --help").output;
+  const std::string listed = help.substr(help.find("Subcommands:"));
+  std::smatch m;
+  int commands = 0;
+  for (auto at = listed.cbegin(); std::regex_search(at, listed.cend(), m, std::regex(R"(\n  ([a-z][a-z-]+) )"));
+       at = m[0].second) {
+    std::string name = std::regex_replace(m[1].str(), std::regex("-"), "\\-");
+    const std::string synopsis = ".B lipdrive " + name;
+    EXPECT_TRUE(page.find(synopsis + "\n") != std::string::npos || page.find(synopsis + " ") != std::string::npos)
+        << name << " is not in the synopsis";
+    EXPECT_THAT(page, HasSubstr(".TP\n.B " + name + "\n")) << name << " is not among the commands";
+    ++commands;
+  }
+  EXPECT_GE(commands, 9) << help;
+}
+
 }  // namespace
