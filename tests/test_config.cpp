@@ -466,6 +466,31 @@ TEST_F(ConfigTest, AHostLookedUpBeforeTheNetworkIsUpIsTriedAgainNotAMistake) {
   EXPECT_EQ(numeric.exit_code, 0) << numeric.output;
 }
 
+// check-config reads what the daemon reads before it starts, with the daemon's exit codes: a
+// model, a predictor or a performer profile the daemon would stop on is not "ok".
+TEST_F(ConfigTest, CheckConfigReadsTheFilesTheDaemonReads) {
+  const fs::path damaged = dir_ / "damaged.lpm";
+  std::ofstream(damaged) << "not a model";
+  write_text(fmt::format("[model]\nfile = \"{}\"\n[camera]\ninput = \"{}\"\n", damaged.string(), kClip.string()));
+  const test::CommandRun model = run_lipdrive("check-config " + file_.string());
+  EXPECT_EQ(model.exit_code, 65) << model.output;
+  EXPECT_THAT(model.output, HasSubstr(damaged.string() + ": not a lipdrive model"));
+  const fs::path predictor_file = dir_ / "damaged.lpp";
+  std::ofstream(predictor_file) << "not a predictor";
+  write("", fmt::format("[tracker]\npredictor = \"{}\"\n", predictor_file.string()));
+  const test::CommandRun predictor = run_lipdrive("check-config " + file_.string());
+  EXPECT_EQ(predictor.exit_code, 65) << predictor.output;
+  EXPECT_THAT(predictor.output, HasSubstr(predictor_file.string()));
+  // A performer whose profile holds something no calibration writes.
+  std::ofstream(dir_ / "ana.toml") << "open = \"wide\"\n";
+  write("", fmt::format("[performer]\nname = \"ana\"\nprofiles_dir = \"{}\"\n", dir_.string()));
+  const test::CommandRun profile = run_lipdrive("check-config " + file_.string());
+  EXPECT_EQ(profile.exit_code, 65) << profile.output;
+  EXPECT_THAT(profile.output, HasSubstr((dir_ / "ana.toml").string()));
+  write("");
+  EXPECT_EQ(run_lipdrive("check-config " + file_.string()).exit_code, 0);
+}
+
 // A USB camera enumerated after the daemon started at boot: the daemon runs (the figure at
 // neutral, the status saying why) until it appears, instead of stopping on a configuration error
 // the service manager would not restart.

@@ -395,6 +395,11 @@ class VoiceInputTest : public ::testing::Test {
     EXPECT_NE(log.find("the drive follows the video alone"), std::string::npos) << log;
     return log;
   }
+  /// `lipdrive check-config` on the file run_daemon() wrote.
+  test::CommandRun check_config() {
+    return test::run_command(std::string(test::kLipdrive) + " check-config " +
+                             (dir_.path() / "lipdrive.toml").string());
+  }
   fs::path model_file(const VoiceModel& model, const std::string& name) {
     const fs::path file = dir_.path() / name;
     save_voice_model_file(file, model);
@@ -414,6 +419,10 @@ TEST_F(VoiceInputTest, ADamagedVoiceModelIsNamedAndTheVideoDrives) {
   }
   const std::string log = run_daemon(fmt::format("model = \"{}\"", model.string()));
   EXPECT_NE(log.find("voice: " + model.string() + ":"), std::string::npos) << log;
+  // check-config reads it as the daemon does, and says what the daemon would run without.
+  const test::CommandRun check = check_config();
+  EXPECT_EQ(check.exit_code, 65) << check.output;
+  EXPECT_NE(check.output.find(model.string() + ":"), std::string::npos) << check.output;
 }
 
 TEST_F(VoiceInputTest, AVoiceModelForAnotherSampleRateIsNamedAndTheVideoDrives) {
@@ -423,6 +432,12 @@ TEST_F(VoiceInputTest, AVoiceModelForAnotherSampleRateIsNamedAndTheVideoDrives) 
   EXPECT_NE(log.find(model.string() + ": the model was trained on sound at 8000 Hz, the input delivers 16000 Hz"),
             std::string::npos)
       << log;
+  const test::CommandRun check = check_config();
+  EXPECT_EQ(check.exit_code, 78) << check.output;
+  EXPECT_NE(
+      check.output.find("key voice.sample_rate: " + model.string() + ": the model was trained on sound at 8000 Hz"),
+      std::string::npos)
+      << check.output;
 }
 
 TEST_F(VoiceInputTest, AClipWithoutSoundIsNamedAndTheVideoDrives) {

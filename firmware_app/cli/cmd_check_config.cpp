@@ -15,11 +15,15 @@ void add_check_config_command(CLI::App& app) {
   auto file = std::make_shared<std::filesystem::path>();
   CLI::App* check = app.add_subcommand(
       "check-config",
-      "Validate a configuration file without starting anything (audio devices are opened once, GPIO lines "
-      "looked up)");
+      "Validate a configuration file without starting anything: the files it names are read as the daemon reads "
+      "them (model, predictor, performer profile, voice model), audio devices opened once, GPIO lines looked up");
   check->add_option("FILE", *file, "configuration file")->required();
   check->callback([file] {
     const Config config = load_config(*file);
+    // What `run` reads before it starts, with the same errors and exit codes.
+    make_processor(config, load_performer(config));
+    // The daemon runs on the video alone without a voice model it can use; the check says why.
+    if (config.voice.enabled) load_voice(config);
     check_audio_inputs(config);
     check_outputs(config);
     fmt::print("{}: ok\n", file->string());

@@ -92,18 +92,12 @@ std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* cl
   const std::string video_only = "the drive follows the video alone";
   VoiceModel model;
   try {
-    model = load_voice_model_file(voice.model);
+    model = load_voice(config);
   } catch (const CommandError& e) {
     spdlog::error("voice: {}; {}", e.what(), video_only);
     return nullptr;
   }
   const int rate = voice.alsa.sample_rate;
-  if (model.features.sample_rate != rate) {
-    spdlog::error(
-        "voice: {}: the model was trained on sound at {} Hz, the input delivers {} Hz (voice.sample_rate); {}",
-        voice.model.string(), model.features.sample_rate, rate, video_only);
-    return nullptr;
-  }
   std::unique_ptr<AudioSource> input;
   if (voice.input == Config::Voice::Input::kSim) {
     try {
@@ -176,6 +170,16 @@ std::unique_ptr<FrameProcessor> make_processor(const Config& config, LoadedFiles
   } catch (const std::invalid_argument& e) {
     throw CommandError(fmt::format("{}: {}", model.file.string(), e.what()), kExitDataError);
   }
+}
+
+VoiceModel load_voice(const Config& config) {
+  VoiceModel model = load_voice_model_file(config.voice.model);
+  if (const int rate = config.voice.alsa.sample_rate; model.features.sample_rate != rate)
+    throw ConfigError(
+        fmt::format("{}: key voice.sample_rate: {}: the model was trained on sound at {} Hz, the input "
+                    "delivers {} Hz",
+                    config.file.string(), config.voice.model.string(), model.features.sample_rate, rate));
+  return model;
 }
 
 void check_audio_inputs(const Config& config) {

@@ -30,6 +30,11 @@ std::unique_ptr<FrameSource> make_source(const Config& config, ReplayClock* cloc
 /// timeline, with its loop's length, for input "sim".
 std::unique_ptr<VoiceRoom> make_voice_room(const Config& config, ReplayClock* clock, TakeSound* sound);
 
+/// The voice model [voice] model names, for the rate the input delivers. Throws CommandError
+/// naming the file (missing: exit 66, invalid: 65) or ConfigError naming voice.sample_rate
+/// when the model was trained on sound at another rate.
+VoiceModel load_voice(const Config& config);
+
 /// The [side_camera], or nullptr when it is not enabled.
 std::unique_ptr<SideCamera> make_side_camera(const Config& config);
 
