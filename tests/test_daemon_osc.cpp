@@ -16,6 +16,7 @@
 #include <lo/lo.h>
 
 #include <algorithm>
+#include <cmath>
 
 namespace lipdrive {
 namespace {
@@ -142,6 +143,17 @@ port = {}
   ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 0), 0);
   EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusOutputsEnabled) == 0; }, 3s));
   EXPECT_TRUE(daemon.wait_for_log(", outputs disabled", 3s)) << "the status line says why the figure rests";
+  // A command whose argument is not what it takes is refused with the reason and does nothing:
+  // a NaN does not switch the drive on, as `NaN != 0` would.
+  ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "f", std::nanf("")), 0);
+  ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "s", "1"), 0);
+  ASSERT_GT(lo_send(to, "/Take", "f", 2.5f), 0);
+  ASSERT_GT(lo_send(to, "/lipdrive/no_such_command", "i", 1), 0);
+  EXPECT_TRUE(daemon.wait_for_log("/lipdrive/no_such_command ,i refused: no such command", 3s)) << daemon.log();
+  EXPECT_NE(daemon.log().find("/lipdrive/output_enable ,f refused: it takes one number"), std::string::npos);
+  EXPECT_NE(daemon.log().find("/lipdrive/output_enable ,s refused"), std::string::npos);
+  EXPECT_NE(daemon.log().find("/Take ,f refused: it takes one take number"), std::string::npos);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(status_now() & kStatusOutputsEnabled, 0) << "a refused command acted";
   ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 1), 0);
   EXPECT_TRUE(test::eventually([&] { return (status_now() & kStatusOutputsEnabled) != 0; }, 3s));
   ASSERT_GT(lo_send(to, "/lipdrive/calibrate", ""), 0);
@@ -188,7 +200,7 @@ port = {}
   std::this_thread::sleep_for(200ms);
   daemon.signal(SIGTERM);
   ASSERT_EQ(daemon.wait(2000ms), 0) << daemon.log();
-  EXPECT_NE(daemon.log().find("malformed datagrams and bundles: 40 more held back in its last second"),
+  EXPECT_NE(daemon.log().find("refused datagrams and commands: 40 more held back in its last second"),
             std::string::npos)
       << daemon.log();
   const std::string log = daemon.log();

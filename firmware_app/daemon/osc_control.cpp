@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cmath>
 
 namespace lipdrive {
 namespace {
@@ -54,47 +55,61 @@ void OscControl::run() {
                    malformed ? "a malformed OSC datagram" : "a bundle (send commands as single messages)", from,
                    held_back_note(held));
   }
-  refused_log_.log_held_back(describe() + ": malformed datagrams and bundles");
+  refused_log_.log_held_back(describe() + ": refused datagrams and commands");
   for (LogThrottle& log : command_log_) log.log_held_back(describe() + ": commands");
 }
 
 void OscControl::handle(const OscMessage& m) {
   const std::string_view address = m.address();
-  const auto set_slate = [&](int at) {
-    if (const auto slate = m.string(at)) {
-      std::lock_guard lock(mutex_);
-      slate_ = file_name_part(*slate);
-    }
+  // Arguments are checked before anything acts: a command whose argument is of another type or
+  // out of its range is refused with the reason, and nothing of it is done (a NaN sent as
+  // output_enable does not switch the drive on).
+  const auto slate_at = [&](int at) -> std::optional<std::string_view> { return m.string(at); };
+  const auto take_at = [&](int at) -> std::optional<int> {
+    const auto take = m.number(at);
+    if (!take || !(*take >= 0 && *take < 1e6) || *take != std::floor(*take)) return std::nullopt;
+    return static_cast<int>(*take);
   };
-  const auto set_take = [&](int at) {
-    if (const auto take = m.number(at); take && *take >= 0 && *take < 1e6) {
-      std::lock_guard lock(mutex_);
-      take_ = static_cast<int>(*take);
-    }
+  const auto refuse = [&](std::string_view reason) {
+    if (std::uint64_t held = 0; refused_log_.pass(held))
+      spdlog::warn("{}: {} ,{} refused: {}{}", describe(), address, m.types(), reason, held_back_note(held));
   };
   std::size_t command = 0;  // which of command_log_
   if (address == osc::kRecordStart) {
-    set_slate(0);
-    set_take(1);
+    const auto slate = m.size() > 0 ? slate_at(0) : std::nullopt;
+    const auto take = m.size() > 1 ? take_at(1) : std::nullopt;
+    if ((m.size() > 0 && !slate) || (m.size() > 1 && !take) || m.size() > 2)
+      return refuse("it takes no argument, a slate (s), or a slate and a take number (s i, 0..999999)");
+    std::lock_guard lock(mutex_);
+    if (slate) slate_ = file_name_part(*slate);
+    if (take) take_ = *take;
     control_.recording_request.store(1, std::memory_order_relaxed);
   } else if (address == osc::kRecordStop) {
     command = 1;
     control_.recording_request.store(0, std::memory_order_relaxed);
   } else if (address == osc::kSlate) {
     command = 2;
-    set_slate(0);
+    const auto slate = m.size() == 1 ? slate_at(0) : std::nullopt;
+    if (!slate) return refuse("it takes one slate (s)");
+    std::lock_guard lock(mutex_);
+    slate_ = file_name_part(*slate);
   } else if (address == osc::kTake) {
     command = 3;
-    set_take(0);
+    const auto take = m.size() == 1 ? take_at(0) : std::nullopt;
+    if (!take) return refuse("it takes one take number (i, 0..999999)");
+    std::lock_guard lock(mutex_);
+    take_ = *take;
   } else if (address == osc::kCalibrate) {
     command = 4;
     control_.calibrate_requests.fetch_add(1, std::memory_order_relaxed);
   } else if (address == osc::kOutputEnable) {
     command = 5;
-    if (const auto on = m.number(0)) control_.outputs_enabled.store(*on != 0, std::memory_order_relaxed);
+    const auto on = m.size() == 1 ? m.number(0) : std::nullopt;
+    if (!on || !std::isfinite(*on))
+      return refuse("it takes one number (i, f, or T/F): 0 eases to neutral, any other drives");
+    control_.outputs_enabled.store(*on != 0, std::memory_order_relaxed);
   } else {
-    spdlog::debug("{}: ignored {} ,{}", describe(), address, m.types());
-    return;
+    return refuse("no such command (docs/osc.md lists them)");
   }
   if (std::uint64_t held = 0; command_log_[command].pass(held))
     spdlog::info("{}: {} ,{}{}", describe(), address, m.types(), held_back_note(held));

@@ -44,7 +44,8 @@ class OscControl {
   OscReceiver receiver_;  // the thread's
   DriveControl& control_;
   // A command's lines at most ten a second each (a fader that sends output_enable at its own
-  // rate, a sender gone wrong), with the count held back; malformed datagrams and bundles too.
+  // rate, a sender gone wrong), with the count held back; refused datagrams, bundles and
+  // commands too.
   std::array<LogThrottle, 6> command_log_;  // the thread's, by command
   LogThrottle refused_log_;                 // the thread's
   std::mutex mutex_;
