@@ -210,5 +210,51 @@ port = {}
   std::cerr << log.substr(at, log.find('\n', at) - at) << "\n";
 }
 
+// The OSC control's port held by another program at start: the daemon drives the figure all the
+// same (it stopped with exit 78, which the unit does not restart), says why, and takes commands
+// once the port is free.
+TEST(DaemonOsc, AControlPortTakenAtStartIsBoundOnceFreeAndTheFigureIsDrivenMeanwhile) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  const test::TempDir dir;
+  test::OscCapture capture;
+  const int holder = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);  // not the daemon's too
+  sockaddr_in control{};
+  control.sin_family = AF_INET;
+  control.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(holder, reinterpret_cast<const sockaddr*>(&control), sizeof control), 0);
+  socklen_t size = sizeof control;
+  ASSERT_EQ(::getsockname(holder, reinterpret_cast<sockaddr*>(&control), &size), 0);
+  const int control_port = ntohs(control.sin_port);
+  const fs::path config = dir.path() / "lipdrive.toml";
+  std::ofstream(config) << test::sim_camera_at_60_fps()
+                        << fmt::format(
+                               "[[channels]]\nname = \"open\"\nsignal = \"open\"\n"
+                               "[[outputs.osc]]\nhost = \"127.0.0.1\"\nport = {}\n"
+                               "[osc_control]\nenabled = true\nport = {}\n",
+                               capture.port(), control_port);
+  test::DaemonProcess daemon(config, dir.path() / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
+  EXPECT_NE(daemon.log().find(fmt::format("osc control udp 127.0.0.1:{}: udp 127.0.0.1:{}: cannot bind: Address "
+                                          "already in use; trying again",
+                                          control_port, control_port)),
+            std::string::npos)
+      << daemon.log();
+  EXPECT_TRUE(test::eventually([&] { return capture.bundles().size() > 30; }, 5s)) << "the figure is driven";
+  ::close(holder);
+  EXPECT_TRUE(daemon.wait_for_log("bound; OSC control again", 5s)) << daemon.log();
+  lo_address to = lo_address_new("127.0.0.1", std::to_string(control_port).c_str());
+  ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 0), 0);
+  lo_address_free(to);
+  EXPECT_TRUE(test::eventually(
+      [&] {
+        const auto bundles = capture.bundles();
+        return (static_cast<int>(bundles.back().messages[1].number) & kStatusOutputsEnabled) == 0;
+      },
+      3s))
+      << daemon.log();
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(3000ms), 0) << daemon.log();
+}
+
 }  // namespace
 }  // namespace lipdrive

@@ -84,7 +84,8 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
     try {
       osc_control_ = std::make_unique<OscControl>(config_.osc_control.address, config_.osc_control.port, control_);
     } catch (const UdpError& e) {
-      throw ConfigError(fmt::format("{}: key osc_control.port: {}", config_.file.string(), e.what()));
+      // Resolved when the file was loaded; a name server that changed its mind since.
+      fail_unresolved(fmt::format("{}: key osc_control.address", config_.file.string()), e);
     }
     spdlog::info("{}", osc_control_->describe());
   }

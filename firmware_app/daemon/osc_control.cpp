@@ -13,8 +13,10 @@
 namespace lipdrive {
 namespace {
 
-// How often the thread looks at stop_ while nothing arrives.
+// How often the thread looks at stop_ while nothing arrives, or while it waits to bind again.
 constexpr std::chrono::milliseconds kPoll{100};
+// Binding again after a failure: 100 ms, doubling up to 2 s.
+constexpr std::chrono::milliseconds kFirstRebind{100}, kMaxRebind{2000};
 
 /// A slate as a file-name part: letters, digits, '-', '.' and '_' kept, everything else '_'.
 std::string file_name_part(std::string_view text) {
@@ -29,8 +31,30 @@ std::string file_name_part(std::string_view text) {
 }  // namespace
 
 OscControl::OscControl(const std::string& address, int port, DriveControl& control)
-    : receiver_(address, port), control_(control), thread_(&OscControl::run, this) {
+    : address_(address),
+      port_(port),
+      where_(resolve_udp(address, port).describe()),
+      rebind_(kFirstRebind, kMaxRebind),
+      control_(control) {
+  bind();
+  thread_ = std::thread(&OscControl::run, this);
   name_thread(thread_, "lipdrive-oscctl");
+}
+
+bool OscControl::bind() {
+  const bool failing = rebind_.failing();
+  try {
+    receiver_.emplace(address_, port_);
+  } catch (const UdpError& e) {
+    rebind_.failed();
+    if (!failing)
+      spdlog::error("{}: {}; trying again with back-off up to {} ms, the daemon runs on without OSC control until then",
+                    describe(), e.what(), kMaxRebind.count());
+    return false;
+  }
+  if (failing) spdlog::info("{}: bound; OSC control again", describe());
+  rebind_.succeeded();
+  return true;
 }
 
 OscControl::~OscControl() {
@@ -46,8 +70,17 @@ std::optional<std::string> OscControl::next_take_name() {
 
 void OscControl::run() {
   std::string from;
+  auto next_bind = std::chrono::steady_clock::now() + rebind_.delay();
   while (!stop_.load(std::memory_order_relaxed)) {
-    const auto received = receiver_.receive(
+    if (!receiver_) {
+      if (std::chrono::steady_clock::now() < next_bind) {
+        std::this_thread::sleep_for(kPoll);
+      } else if (!bind()) {
+        next_bind = std::chrono::steady_clock::now() + rebind_.delay();
+      }
+      continue;
+    }
+    const auto received = receiver_->receive(
         kPoll, [this](const OscMessage& m) { handle(m); }, &from);
     const bool malformed = received == OscReceiver::Received::kMalformed;
     if (std::uint64_t held = 0; (malformed || received == OscReceiver::Received::kBundle) && refused_log_.pass(held))

@@ -5,10 +5,12 @@
 //
 // Thread model: one thread of its own receives and handles the messages (drivers/
 // osc_receiver.hpp); it writes DriveControl's atomics and, under a mutex, the slate and take
-// the main thread reads when it starts a take. The Daemon declares it after the pipeline
-// whose DriveControl it writes, so it is joined first.
+// the main thread reads when it starts a take. A port it cannot bind (another program holds
+// it, the address is not up yet) is tried again by that thread with the one back-off. The Daemon declares it after the
+// pipeline whose DriveControl it writes, so it is joined first.
 #pragma once
 
+#include "core/backoff.hpp"
 #include "drivers/osc_receiver.hpp"
 #include "firmware_app/daemon/log_throttle.hpp"
 #include "firmware_app/outputs/output.hpp"
@@ -24,7 +26,9 @@ namespace lipdrive {
 
 class OscControl {
  public:
-  /// Binds address:port. Throws UdpError naming the address ("Address already in use").
+  /// Binds address:port, a resolved one (Config). When the bind fails ("Address already in
+  /// use"), says so and keeps trying on its thread: the daemon runs on without OSC control until
+  /// then, as without the monitor. Throws UdpError only for an address that does not resolve.
   OscControl(const std::string& address, int port, DriveControl& control);
   ~OscControl();
   OscControl(const OscControl&) = delete;
@@ -34,14 +38,19 @@ class OscControl {
   /// take up, as Live Link Face does; nullopt without a slate.
   std::optional<std::string> next_take_name();
 
-  std::string describe() const { return "osc control " + receiver_.describe(); }
-  int port() const { return receiver_.port(); }
+  std::string describe() const { return "osc control udp " + where_; }
 
  private:
   void run();
+  /// Binds the receiver; false, having logged why when it is the first failure in a row.
+  bool bind();
   void handle(const OscMessage& message);
 
-  OscReceiver receiver_;  // the thread's
+  const std::string address_;
+  const int port_;
+  const std::string where_;              // "127.0.0.1:8000"
+  std::optional<OscReceiver> receiver_;  // the thread's (the constructor's before it starts)
+  Backoff rebind_;                       // the thread's
   DriveControl& control_;
   // A command's lines at most ten a second each (a fader that sends output_enable at its own
   // rate, a sender gone wrong), with the count held back; refused datagrams, bundles and
