@@ -44,6 +44,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -784,6 +785,52 @@ TEST_F(PipelineTest, FullDiskStopsTheTakeButNotThePipeline) {
   EXPECT_GT(pipeline.stats().processed, processed + 10) << "the pipeline keeps processing";
   EXPECT_GT(output.count, published + 10) << "and the outputs keep getting results";
   pipeline.stop();
+}
+
+// A disk that fills in the middle of a batch of rows (here the process's file-size limit, which
+// cuts a write short as a full disk does, then fails it): the take keeps whole rows only, each
+// with the header's fields, instead of ending in the middle of one.
+TEST_F(PipelineTest, ADiskThatFillsMidRowLeavesTheTakeWithWholeRows) {
+  const fs::path dir = fs::temp_directory_path() / fmt::format("lipdrive_full_take_{}", ::getpid());
+  fs::create_directories(dir);
+  const fs::path take = dir / "take.csv";
+  rlimit before{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &before), 0);
+  const auto previous_handler = std::signal(SIGXFSZ, SIG_IGN);
+  rlimit limited = before;
+  limited.rlim_cur = 20'011;  // a prime: no row boundary falls on it by design
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limited), 0);
+  {
+    DriveControl control;
+    Pipeline pipeline(std::make_unique<SimulatedCamera>(clip_options()), make_processor(), PipelineSettings{}, control);
+    TakeRecorder recorder("clip", 50ms);
+    pipeline.set_recorder(recorder);
+    recorder.start(take);
+    pipeline.start();
+    wait_for([&] { return recorder.error().has_value(); }, 30s);
+    pipeline.stop();
+    ASSERT_TRUE(recorder.error().has_value());
+    EXPECT_THAT(*recorder.error(),
+                HasSubstr("recording stopped: File too large; the take ends with its last whole row"));
+  }
+  ::setrlimit(RLIMIT_FSIZE, &before);
+  std::signal(SIGXFSZ, previous_handler);
+  std::ifstream file(take);
+  const std::string text((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  ASSERT_GT(text.size(), 1000u);
+  EXPECT_LT(text.size(), 20'011u);
+  EXPECT_EQ(text.back(), '\n') << "the take ends in the middle of a row";
+  std::istringstream lines(text);
+  std::string line;
+  std::getline(lines, line);
+  const auto fields = std::count(line.begin(), line.end(), ',');
+  int rows = 0;
+  while (std::getline(lines, line)) {
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), fields) << "row " << rows;
+    ++rows;
+  }
+  EXPECT_GT(rows, 3);
+  fs::remove_all(dir);
 }
 
 // The take's folder deleted while it records (a clean-up of the takes folder): the take stops

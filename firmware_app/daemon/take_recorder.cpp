@@ -199,15 +199,22 @@ void TakeRecorder::append_header(const FrameResult* first) {
 }
 
 bool TakeRecorder::write_all(const char* data, std::size_t size) {
-  while (size > 0) {
-    const ssize_t written = ::write(fd_.get(), data, size);
+  std::size_t done = 0;
+  while (done < size) {
+    const ssize_t written = ::write(fd_.get(), data + done, size - done);
     if (written < 0 && errno == EINTR) continue;
     if (written < 0) {
-      fail(fmt::format("{}: recording stopped: {}", file_.string(), std::strerror(errno)));
+      const int error = errno;
+      // A disk that filled in the middle of the batch: the part of it that went in ends in the
+      // middle of a row. The take is cut back to its last whole row.
+      if (const off_t end = ::lseek(fd_.get(), 0, SEEK_CUR); done > 0 && end >= static_cast<off_t>(done)) {
+        [[maybe_unused]] const int ignored = ::ftruncate(fd_.get(), end - static_cast<off_t>(done));
+      }
+      fail(fmt::format("{}: recording stopped: {}; the take ends with its last whole row", file_.string(),
+                       std::strerror(error)));
       return false;
     }
-    data += written;
-    size -= static_cast<std::size_t>(written);
+    done += static_cast<std::size_t>(written);
   }
   return true;
 }
