@@ -29,7 +29,8 @@ namespace lipdrive {
 
 namespace {
 
-// RTU: a failed serial line is reopened with back-off, from 100 ms up to 5 s.
+// A serial line that failed or was not there, or a port that could not be listened on, is
+// tried again with back-off, from 100 ms up to 5 s.
 constexpr std::chrono::milliseconds kReopenFirst{100}, kReopenMax{5000};
 constexpr int kAcceptRetryMs = 100;
 // TCP keepalive: a peer that vanished without a FIN (a PLC power-cycled, a cable pulled) is
@@ -207,23 +208,20 @@ ModbusServer::ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int 
   if (!mapping_ || wake_fd_.get() == -1)
     throw std::runtime_error(fmt::format("modbus server {}: {}", describe(), std::strerror(errno)));
   set_timeouts(context_.get(), endpoint.transport);
-  if (endpoint.transport == ModbusEndpoint::Transport::kTcp) {
-    listen_fd_ = UniqueFd(modbus_tcp_listen(context_.get(), max_clients));
-    sockaddr_in bound{};
-    socklen_t size = sizeof bound;
-    if (listen_fd_.get() == -1 || ::getsockname(listen_fd_.get(), reinterpret_cast<sockaddr*>(&bound), &size) == -1)
-      throw std::runtime_error(fmt::format("modbus server {}: cannot listen: {}", describe(), modbus_strerror(errno)));
-    port_ = ntohs(bound.sin_port);
-    thread_ = std::thread(&ModbusServer::serve_tcp, this);
-    name_thread(thread_, "lipdrive-mbserve");
+  // A port taken by another process or a serial device not there yet stops no other output: the
+  // server reports itself unhealthy and its thread tries again with back-off.
+  const bool tcp = endpoint.transport == ModbusEndpoint::Transport::kTcp;
+  if (tcp ? listen() : connect_context(context_.get(), endpoint_)) {
+    spdlog::info("modbus server {}: serving {} input and {} holding registers", describe(), input_registers,
+                 holding_registers);
   } else {
-    if (!connect_context(context_.get(), endpoint_))
-      throw std::runtime_error(fmt::format("modbus server {}: cannot open: {}", describe(), modbus_strerror(errno)));
-    thread_ = std::thread(&ModbusServer::serve_rtu, this);
-    name_thread(thread_, "lipdrive-mbserve");
+    const int error = errno;
+    spdlog::error("modbus server {}: cannot {}: {}; trying again with back-off up to {} ms", describe(),
+                  tcp ? "listen" : "open", modbus_strerror(error), kReopenMax.count());
+    healthy_.store(false, std::memory_order_relaxed);
   }
-  spdlog::info("modbus server {}: serving {} input and {} holding registers", describe(), input_registers,
-               holding_registers);
+  thread_ = std::thread(tcp ? &ModbusServer::serve_tcp : &ModbusServer::serve_rtu, this);
+  name_thread(thread_, "lipdrive-mbserve");
 }
 
 ModbusServer::~ModbusServer() {
@@ -237,9 +235,19 @@ ModbusServer::~ModbusServer() {
 }
 
 std::string ModbusServer::describe() const {
-  if (endpoint_.transport == ModbusEndpoint::Transport::kTcp && port_ != 0)
-    return fmt::format("tcp {}:{}", endpoint_.address, port_);
+  if (const int bound = port(); endpoint_.transport == ModbusEndpoint::Transport::kTcp && bound != 0)
+    return fmt::format("tcp {}:{}", endpoint_.address, bound);
   return lipdrive::describe(endpoint_);
+}
+
+bool ModbusServer::listen() {
+  UniqueFd fd(modbus_tcp_listen(context_.get(), max_clients_));
+  sockaddr_in bound{};
+  socklen_t size = sizeof bound;
+  if (fd.get() == -1 || ::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&bound), &size) == -1) return false;
+  listen_fd_ = std::move(fd);
+  port_.store(ntohs(bound.sin_port), std::memory_order_relaxed);
+  return true;
 }
 
 short ModbusServer::wait_readable(int fd, int timeout_ms) {
@@ -279,6 +287,16 @@ void ModbusServer::skip_rest_of_request(int length) {
 }
 
 void ModbusServer::serve_tcp() {
+  // Not listening yet (the port was taken at construction): try again with back-off until it
+  // is free, or stop.
+  Backoff relisten(kReopenFirst, kReopenMax);
+  while (listen_fd_.get() == -1) {
+    const auto delay = std::chrono::duration_cast<std::chrono::milliseconds>(relisten.failed());
+    if (wait_readable(-1, static_cast<int>(delay.count())) == 0 && stopping_.load(std::memory_order_relaxed)) return;
+    if (!listen()) continue;
+    spdlog::info("modbus server {}: listening now", describe());
+    healthy_.store(true, std::memory_order_relaxed);
+  }
   std::vector<TcpClient> clients;
   clients.reserve(static_cast<std::size_t>(max_clients_));
   std::vector<pollfd> fds;
@@ -355,12 +373,13 @@ void ModbusServer::serve_tcp() {
 void ModbusServer::serve_rtu() {
   modbus_t* context = context_.get();
   Backoff reopen(kReopenFirst, kReopenMax);
+  bool was_open = healthy_.load(std::memory_order_relaxed);  // not when the device was missing at construction
   while (!stopping_.load(std::memory_order_relaxed)) {
     if (!healthy_.load(std::memory_order_relaxed)) {
       const auto delay = std::chrono::duration_cast<std::chrono::milliseconds>(reopen.failed());
       if (wait_readable(-1, static_cast<int>(delay.count())) == 0 && stopping_.load(std::memory_order_relaxed)) break;
       if (!connect_context(context, endpoint_)) continue;
-      spdlog::info("modbus server {}: serial line open again", describe());
+      spdlog::info("modbus server {}: serial line open{}", describe(), std::exchange(was_open, true) ? " again" : "");
       reopen.succeeded();
       healthy_.store(true, std::memory_order_relaxed);
     }

@@ -1,7 +1,9 @@
 // A Modbus slave (server) over TCP or RTU on libmodbus 3.1. Never includes core/.
 //
-// Thread model: the constructor binds the socket or opens the serial device, then one
-// thread of its own owns the libmodbus context and the register mapping until destruction.
+// Thread model: the constructor tries to bind the socket or open the serial device, then one
+// thread of its own owns the libmodbus context and the register mapping until destruction;
+// when that first try failed (a port taken, a device not there yet), the thread tries again
+// with back-off. port(), describe() and healthy() may be called from any thread.
 // The owner's callbacks run on that thread: `refresh` fills the mapping before every request
 // is answered, so a reply always shows the newest state; `written` reports what a request
 // writes to holding registers before the acknowledgement goes out, so a master that has its
@@ -38,7 +40,10 @@ class ModbusServer {
   /// whose last request is oldest if that was kQuietBeforeClosingMs ago or more (one left
   /// half-open by a rebooted PLC never sends again), else it is refused.
   /// RTU: answers requests for endpoint.unit_id.
-  /// Throws std::runtime_error when the port cannot be bound or the device opened.
+  /// A port that cannot be bound or a device that cannot be opened is logged once, the server
+  /// is unhealthy, and its thread tries again with back-off (100 ms doubling up to 5 s) until it
+  /// can, logging once when it does. Throws std::runtime_error only when libmodbus or the
+  /// system cannot provide the context, the register mapping or an eventfd.
   ModbusServer(const ModbusEndpoint& endpoint, int max_clients, int input_registers, int holding_registers,
                Refresh refresh, Written written);
   /// Stops the thread (promptly: it never waits longer than kByteTimeout) and closes everything.
@@ -46,11 +51,12 @@ class ModbusServer {
   ModbusServer(const ModbusServer&) = delete;
   ModbusServer& operator=(const ModbusServer&) = delete;
 
-  /// TCP: the port actually bound.
-  int port() const { return port_; }
+  /// TCP: the port actually bound; 0 while not listening yet.
+  int port() const { return port_.load(std::memory_order_relaxed); }
   /// "tcp 0.0.0.0:1502" or "rtu /dev/ttyUSB0 ...".
   std::string describe() const;
-  /// False after the serial line failed (unplugged adapter); the server reopens it by itself.
+  /// False while not listening yet (TCP), after the serial line failed (unplugged adapter) and
+  /// while it could not be opened yet (RTU); the server tries again by itself.
   bool healthy() const { return healthy_.load(std::memory_order_relaxed); }
 
   /// How long libmodbus waits for the rest of a frame: on RTU once its first byte is there;
@@ -69,6 +75,8 @@ class ModbusServer {
  private:
   void serve_tcp();
   void serve_rtu();
+  /// TCP: listens on the endpoint (listen_fd_, port_). False with errno set when it cannot.
+  bool listen();
   /// Reads one request from the context's current socket and answers it. False when the
   /// peer is gone or sent something that is not a request (the connection is then dropped).
   bool answer_one();
@@ -88,9 +96,9 @@ class ModbusServer {
   };
   ModbusContext context_;                                      // the server thread's
   std::unique_ptr<modbus_mapping_t, MappingDeleter> mapping_;  // the server thread's
-  UniqueFd listen_fd_;                                         // tcp
+  UniqueFd listen_fd_;                                         // tcp; the server thread's once it runs
   UniqueFd wake_fd_;  // eventfd: destruction wakes the server thread out of poll()
-  int port_ = 0;
+  std::atomic<int> port_{0};
   std::vector<std::uint8_t> query_;
   std::atomic<bool> stopping_{false}, healthy_{true};
   std::thread thread_;

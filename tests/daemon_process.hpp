@@ -143,6 +143,35 @@ inline int free_port(int type = SOCK_STREAM) {
   return ntohs(address.sin_port);
 }
 
+/// A loopback port another program listens on, until release().
+class PortInUse {
+ public:
+  PortInUse() : fd_(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+    EXPECT_EQ(::listen(fd_, 1), 0);
+    socklen_t size = sizeof address;
+    ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size);
+    port_ = ntohs(address.sin_port);
+  }
+  ~PortInUse() { release(); }
+  PortInUse(const PortInUse&) = delete;
+  PortInUse& operator=(const PortInUse&) = delete;
+
+  int port() const { return port_; }
+  /// Closes the socket: the port is free.
+  void release() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  int fd_ = -1;
+  int port_ = 0;
+};
+
 /// The systemd watchdog pings among the messages of a NotifySocket, and the longest gap
 /// between two of them.
 class WatchdogPings {

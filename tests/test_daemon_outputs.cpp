@@ -1,7 +1,8 @@
 // `lipdrive run` end to end on the simulated camera with real peers on its outputs: libmodbus
 // masters read the register map over RTU (a socat pty pair) and TCP while the daemon runs, a
 // reader on another pty pair decodes the framed serial protocol, and after SIGTERM the last
-// thing on the serial line is the neutral pose.
+// thing on the serial line is the neutral pose; a Modbus port taken at start stops no other
+// output.
 #include "daemon_process.hpp"
 #include "drivers/modbus_link.hpp"
 #include "firmware_app/outputs/modbus_server_output.hpp"
@@ -133,6 +134,68 @@ device = "{}"
   EXPECT_THAT(wire, HasSubstr("median")) << log;
   RecordProperty("serial_capture_to_wire", wire);
   RecordProperty("capture_to_processed", stats_line(log, "capture->processed latency"));
+}
+
+TEST(DaemonOutputs, AModbusPortTakenAtStartStopsNoOtherOutput) {
+  LIPDRIVE_REQUIRE_BUILT(kClip);
+  const test::TempDir dir;
+  const test::PtyPair line(dir.path() / "serial");
+  test::PtyReader reader(line.b);
+  test::PortInUse taken;  // another program listens on the server's port
+  const fs::path config = dir.path() / "lipdrive.toml";
+  std::ofstream(config) << test::sim_camera_at_60_fps()
+                        << fmt::format(R"([status]
+print_interval_ms = 200
+[safety]
+hold_ms = 100
+ease_ms = 200
+[[channels]]
+name = "open"
+signal = "open"
+[[channels]]
+name = "width"
+signal = "width"
+neutral = {}
+[[outputs.modbus_server]]
+port = {}
+[[outputs.serial]]
+mode = "framed"
+device = "{}"
+)",
+                                       kWidthNeutral, taken.port(), line.a.string());
+  test::DaemonProcess daemon(config, dir.path() / "stderr.txt");
+  // Before the fix the daemon exited at once (1): wait for whichever comes first.
+  ASSERT_TRUE(test::eventually(
+      [&] { return daemon.log().find("running:") != std::string::npos || daemon.wait(0ms) != -1; }, 60s))
+      << daemon.log();
+  ASSERT_THAT(daemon.log(), HasSubstr("running:")) << "the daemon runs on";
+  const std::string server = fmt::format("modbus server tcp 127.0.0.1:{}", taken.port());
+  EXPECT_THAT(daemon.log(), HasSubstr(server + ": cannot listen: Address already in use; trying again with back-off"));
+  EXPECT_TRUE(daemon.wait_for_log(server + " failing", 10s)) << "the status line says so\n" << daemon.log();
+
+  // The serial output beside it is driven meanwhile.
+  EXPECT_TRUE(test::eventually([&] { return test::decode_frames(reader.read_available()).frames.size() > 30; }, 10s))
+      << "framed frames over the pty while the Modbus port is taken";
+
+  // The port is freed: the server listens and serves without a restart.
+  taken.release();
+  const ModbusContext master(modbus_new_tcp("127.0.0.1", taken.port()));
+  ASSERT_TRUE(test::eventually([&] { return modbus_connect(master.get()) == 0; }, 20s)) << daemon.log();
+  modbus_set_response_timeout(master.get(), 1, 0);
+  std::array<std::uint16_t, modbus_map::kFirstChannel + 2> input{};
+  ASSERT_EQ(modbus_read_input_registers(master.get(), 0, static_cast<int>(input.size()), input.data()),
+            static_cast<int>(input.size()))
+      << modbus_strerror(errno);
+  EXPECT_EQ(input[modbus_map::kChannelCount], 2);
+  EXPECT_THAT(daemon.log(), HasSubstr(server + ": listening now"));
+
+  daemon.signal(SIGTERM);
+  ASSERT_EQ(daemon.wait(3000ms), 0) << daemon.log();
+  std::this_thread::sleep_for(100ms);
+  const test::FrameStream stream = test::decode_frames(reader.read_available());
+  ASSERT_GT(stream.frames.size(), 30u);
+  EXPECT_EQ(stream.frames.back().values, (std::vector<std::int16_t>{0, kWidthNeutral}))
+      << "the last frame is the neutral pose";
 }
 
 }  // namespace

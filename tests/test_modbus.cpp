@@ -1,7 +1,9 @@
 // The Modbus outputs against real peers: libmodbus masters reading and writing the register
 // map over loopback TCP and over an RTU pty pair (socat), the client output writing to a
-// libmodbus slave that goes away and comes back, and the server under garbage and load.
+// libmodbus slave that goes away and comes back, the server under garbage and load, and a
+// server whose port is taken or whose device is missing at start.
 #include "captured_log.hpp"
+#include "daemon_process.hpp"
 #include "drivers/clock.hpp"
 #include "firmware_app/config/model_files.hpp"
 #include "firmware_app/daemon/pipeline.hpp"
@@ -239,6 +241,74 @@ TEST(ModbusServer, AnRtuServerClosesItsLineWhenItGoes) {
   const std::size_t before = open_descriptors();
   for (int reload = 0; reload < 3; ++reload) ModbusServerOutput(options, kChannels, control);
   EXPECT_EQ(open_descriptors(), before) << "each reload of the daemon builds its outputs again";
+}
+
+// ---------------------------------------------------------------- a port or device not there at start
+
+TEST(ModbusServer, ATcpServerWhosePortIsTakenAtStartServesOnceItIsFree) {
+  const testing::CapturedLog log;
+  test::PortInUse taken;  // another program listens there
+  ModbusServerOptions options = tcp_server_options();
+  options.link.port = taken.port();
+  DriveControl control;
+  ModbusServerOutput output(options, kChannels, control);
+  EXPECT_FALSE(output.healthy()) << "reported failing, not thrown";
+  EXPECT_THAT(output.describe(), HasSubstr(fmt::format("tcp 127.0.0.1:{}", taken.port())));
+  std::this_thread::sleep_for(500ms);  // a few tries while the port is still taken
+  EXPECT_FALSE(output.healthy());
+  const std::vector<std::string> errors = log.messages(spdlog::level::err);
+  ASSERT_EQ(errors.size(), 1u) << "logged once, not once per try";
+  EXPECT_THAT(errors[0], HasSubstr(fmt::format("modbus server tcp 127.0.0.1:{}: cannot listen: Address already in use; "
+                                               "trying again with back-off",
+                                               taken.port())));
+
+  taken.release();
+  ASSERT_TRUE(wait_for([&] { return output.healthy(); }, 20s)) << "listens once the port is free";
+  EXPECT_EQ(output.port(), options.link.port);
+  EXPECT_THAT(log.messages(spdlog::level::info), ::testing::Contains(HasSubstr("listening now")));
+  const ModbusContext master = tcp_master(output.port());
+  check_register_map(master.get(), output, control);
+}
+
+TEST(ModbusServer, AnRtuServerWhoseDeviceIsMissingAtStartOpensItWhenItAppears) {
+  const testing::CapturedLog log;
+  const test::TempDir dir;
+  ModbusServerOptions options;
+  options.link.transport = ModbusEndpoint::Transport::kRtu;
+  options.link.line.device = dir.path() / "line" / "a";  // the PtyPair below makes it
+  options.link.line.baud = 115200;
+  options.link.unit_id = 7;
+  DriveControl control;
+  ModbusServerOutput output(options, kChannels, control);
+  EXPECT_FALSE(output.healthy()) << "reported failing, not thrown";
+  const std::vector<std::string> errors = log.messages(spdlog::level::err);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_THAT(errors[0], HasSubstr("cannot open: No such file or directory; trying again with back-off"));
+  std::this_thread::sleep_for(300ms);  // a few tries while the device is missing
+  EXPECT_FALSE(output.healthy());
+
+  const test::PtyPair line(dir.path() / "line");  // the adapter is plugged in
+  ASSERT_TRUE(wait_for([&] { return output.healthy(); }, 20s)) << "opens the device once it is there";
+  EXPECT_THAT(log.messages(spdlog::level::info), ::testing::Contains(HasSubstr("serial line open")));
+  const ModbusContext master(modbus_new_rtu(line.b.c_str(), 115200, 'N', 8, 1));
+  ASSERT_EQ(modbus_connect(master.get()), 0) << modbus_strerror(errno);
+  modbus_set_response_timeout(master.get(), 1, 0);
+  modbus_set_slave(master.get(), 7);
+  check_register_map(master.get(), output, control);
+  EXPECT_EQ(log.count(spdlog::level::err), 1) << "nothing failed after the device appeared";
+}
+
+TEST(ModbusServer, StopsPromptlyWhileWaitingForItsPort) {
+  test::PortInUse taken;
+  ModbusServerOptions options = tcp_server_options();
+  options.link.port = taken.port();
+  DriveControl control;
+  auto output = std::make_unique<ModbusServerOutput>(options, kChannels, control);
+  std::this_thread::sleep_for(1600ms);  // tries at 0.1, 0.3, 0.7 and 1.5 s; the next one waits 1.6 s
+  EXPECT_FALSE(output->healthy());
+  const auto start = std::chrono::steady_clock::now();
+  output.reset();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 1s) << "the back-off's wait is cut short, not sat out";
 }
 
 // ---------------------------------------------------------------- robustness

@@ -24,9 +24,11 @@ namespace lipdrive {
 /// registers (and the record register) show the newest published DriveFrame.
 class ModbusServerOutput : public Output {
  public:
-  /// Binds the port or opens the serial device at once: throws std::runtime_error when that
-  /// fails, std::invalid_argument for more than kMaxChannels channels. `control` must outlive
-  /// the output.
+  /// Binds the port or opens the serial device at once; when that fails (a port taken, a device
+  /// not there yet) the output is unhealthy and the server tries again with back-off
+  /// (drivers/modbus_server.hpp). Throws std::invalid_argument for more than kMaxChannels
+  /// channels, std::runtime_error when libmodbus rejects the link's settings. `control` must
+  /// outlive the output.
   ModbusServerOutput(const ModbusServerOptions& options, std::span<const ChannelSpec> channels, DriveControl& control);
 
   void publish(const DriveFrame& frame) override { latest_.publish(frame); }
