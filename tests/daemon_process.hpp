@@ -146,12 +146,14 @@ inline int free_port(int type = SOCK_STREAM) {
 /// A loopback port another program listens on, until release().
 class PortInUse {
  public:
-  PortInUse() : fd_(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+  /// A TCP port (listened on), or with SOCK_DGRAM a UDP one, on the loopback interface. The
+  /// socket is not inherited by a daemon the test starts.
+  explicit PortInUse(int type = SOCK_STREAM) : fd_(::socket(AF_INET, type | SOCK_CLOEXEC, 0)) {
     sockaddr_in address{};
     address.sin_family = AF_INET;
     address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
-    EXPECT_EQ(::listen(fd_, 1), 0);
+    if (type == SOCK_STREAM) EXPECT_EQ(::listen(fd_, 1), 0);
     socklen_t size = sizeof address;
     ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size);
     port_ = ntohs(address.sin_port);

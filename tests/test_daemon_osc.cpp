@@ -217,14 +217,8 @@ TEST(DaemonOsc, AControlPortTakenAtStartIsBoundOnceFreeAndTheFigureIsDrivenMeanw
   LIPDRIVE_REQUIRE_BUILT(test::kClip);
   const test::TempDir dir;
   test::OscCapture capture;
-  const int holder = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);  // not the daemon's too
-  sockaddr_in control{};
-  control.sin_family = AF_INET;
-  control.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ASSERT_EQ(::bind(holder, reinterpret_cast<const sockaddr*>(&control), sizeof control), 0);
-  socklen_t size = sizeof control;
-  ASSERT_EQ(::getsockname(holder, reinterpret_cast<sockaddr*>(&control), &size), 0);
-  const int control_port = ntohs(control.sin_port);
+  test::PortInUse holder(SOCK_DGRAM);
+  const int control_port = holder.port();
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << test::sim_camera_at_60_fps()
                         << fmt::format(
@@ -240,7 +234,7 @@ TEST(DaemonOsc, AControlPortTakenAtStartIsBoundOnceFreeAndTheFigureIsDrivenMeanw
             std::string::npos)
       << daemon.log();
   EXPECT_TRUE(test::eventually([&] { return capture.bundles().size() > 30; }, 5s)) << "the figure is driven";
-  ::close(holder);
+  holder.release();
   EXPECT_TRUE(daemon.wait_for_log("bound; OSC control again", 5s)) << daemon.log();
   lo_address to = lo_address_new("127.0.0.1", std::to_string(control_port).c_str());
   ASSERT_GT(lo_send(to, "/lipdrive/output_enable", "i", 0), 0);

@@ -593,45 +593,24 @@ TEST(MonitorHttp, ClientsBeyondTheBoundAreTurnedAwayAtOnce) {
   daemon.stop();
 }
 
-/// A port another socket listens on.
-class TakenPort {
- public:
-  TakenPort() {
-    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
-    EXPECT_EQ(::listen(fd_, 1), 0);
-    socklen_t size = sizeof address;
-    ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &size);
-    port = ntohs(address.sin_port);
-  }
-  ~TakenPort() { ::close(fd_); }
-  int port = 0;
-
- private:
-  int fd_ = -1;
-};
-
 TEST(MonitorHttp, ATakenPortOrABadAddressIsLoggedAndTheDaemonRunsOn) {
   LIPDRIVE_REQUIRE_BUILT(kClip);
   const test::TempDir dir;
-  const TakenPort taken;
+  const test::PortInUse taken;
   struct Case {
     std::string keys, message;
   };
   const Case cases[] = {
       {"", fmt::format("monitor: cannot listen on 127.0.0.1:{}: Address already in use; the daemon runs on without "
                        "the monitor page",
-                       taken.port)},
+                       taken.port())},
       {"address = \"no such host.invalid\"",
-       fmt::format("monitor: cannot listen on no such host.invalid:{}: the address does not resolve", taken.port)},
+       fmt::format("monitor: cannot listen on no such host.invalid:{}: the address does not resolve", taken.port())},
       {"address = \"192.0.2.1\"",  // TEST-NET-1: no interface of this machine has it
-       fmt::format("monitor: cannot listen on 192.0.2.1:{}: Cannot assign requested address", taken.port)},
+       fmt::format("monitor: cannot listen on 192.0.2.1:{}: Cannot assign requested address", taken.port())},
   };
   for (const Case& c : cases) {
-    std::ofstream(dir.path() / "lipdrive.toml", std::ios::trunc) << monitor_config(dir.path(), taken.port, c.keys);
+    std::ofstream(dir.path() / "lipdrive.toml", std::ios::trunc) << monitor_config(dir.path(), taken.port(), c.keys);
     test::DaemonProcess daemon(dir.path() / "lipdrive.toml", dir.path() / "stderr.txt", "--frames 90 --stats");
     EXPECT_EQ(daemon.wait(120s), 0) << daemon.log();
     const std::string log = daemon.log();
