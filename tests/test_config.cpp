@@ -444,6 +444,14 @@ TEST_F(ConfigTest, CheckConfigExitsWithExConfig) {
   const test::CommandRun folder = run_lipdrive("check-config " + dir_.string());
   EXPECT_EQ(folder.exit_code, 78) << folder.output;
   EXPECT_THAT(folder.output, HasSubstr(dir_.string() + ": cannot read the file: not a regular file"));
+  // A file cut to nothing, or to its comments: every default would drive nothing.
+  write_text("# only a comment\n\n");
+  const test::CommandRun empty = run_lipdrive("check-config " + file_.string());
+  EXPECT_EQ(empty.exit_code, 78) << empty.output;
+  EXPECT_THAT(empty.output, HasSubstr(file_.string() + ": the file holds no settings"));
+  // Why a file cannot be read.
+  const test::CommandRun missing = run_lipdrive("check-config " + (dir_ / "none.toml").string());
+  EXPECT_THAT(missing.output, HasSubstr((dir_ / "none.toml").string() + ": cannot read the file: No such file"));
 }
 
 // At boot the name server may not answer yet: a host name that cannot be looked up *now* is not

@@ -14,7 +14,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <initializer_list>
 #include <span>
 #include <string_view>
@@ -704,11 +707,15 @@ void fail_unresolved(const std::string& where, const UdpError& error) {
 
 Config load_config(const fs::path& file, ConfigUse use) {
   const std::string name = file.string();
-  // toml++ reads a directory as an empty file: every default, silently. A missing file is
-  // reported by the parser below.
+  // toml++ reads a directory as an empty file: every default, silently; and says a file it
+  // cannot open "could not be opened", not why.
   std::error_code ec;
   if (const fs::file_status status = fs::status(file, ec); fs::exists(status) && !fs::is_regular_file(status))
     throw ConfigError(fmt::format("{}: cannot read the file: not a regular file", name));
+  if (std::FILE* readable = std::fopen(name.c_str(), "r"))
+    std::fclose(readable);
+  else
+    throw ConfigError(fmt::format("{}: cannot read the file: {}", name, std::strerror(errno)));
   toml::table root;
   try {
     root = toml::parse_file(name);
@@ -717,6 +724,9 @@ Config load_config(const fs::path& file, ConfigUse use) {
     if (where.line == 0) throw ConfigError(fmt::format("{}: cannot read the file: {}", name, e.description()));
     throw ConfigError(fmt::format("{}:{}:{}: {}", name, where.line, where.column, e.description()));
   }
+  // A file cut to nothing (an editor's save on a full disk, a copy that failed) would run the
+  // daemon on every default: no output, the figure not driven. A reload keeps the running one.
+  if (root.empty()) throw ConfigError(fmt::format("{}: the file holds no settings (empty, or cut short?)", name));
   Config config;
   config.file = file;
   Section top(name, &root, "");
