@@ -490,6 +490,14 @@ TEST(MonitorHttp, CommandsAreRefusedWithoutTheTokenAndCarriedOutWithIt) {
   EXPECT_THAT(raw_exchange(daemon.port, "POST /api/calibrate HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n"
                                         "4\r\nabcd\r\n0\r\n\r\n"),
               ::testing::StartsWith("HTTP/1.1 413"));
+  // A command without a length (curl -X POST without -d) is answered at once with how to send it,
+  // not read until the client gives up.
+  const std::string lengthless =
+      raw_exchange(daemon.port, fmt::format("POST /api/calibrate HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {}\r\n"
+                                            "Connection: close\r\n\r\n",
+                                            kToken));
+  EXPECT_THAT(lengthless, ::testing::StartsWith("HTTP/1.1 411"));
+  EXPECT_THAT(lengthless, HasSubstr("Content-Length: 0 (curl -d '')"));
   // So is a request for byte ranges: one range asked for 700 times came back as 700 parts.
   std::string ranges = "GET / HTTP/1.1\r\nHost: x\r\n";
   for (int i = 0; i < 700; ++i) ranges += "Range: bytes=0-40000\r\n";

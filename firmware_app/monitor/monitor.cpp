@@ -235,6 +235,14 @@ void Monitor::add_routes() {
       response.set_content("the monitor takes no request body\n", "text/plain");
       return httplib::Server::HandlerResponse::Handled;
     }
+    // A command sent without a length (`curl -X POST` without `-d`): httplib would wait for a
+    // body until the client closed, and answer 400 with nothing said a second later, holding a
+    // worker. The commands take none: say how to send one.
+    if (request.method == "POST" && !request.has_header("Content-Length")) {
+      response.status = 411;
+      response.set_content("send the command with Content-Length: 0 (curl -d '')\n", "text/plain");
+      return httplib::Server::HandlerResponse::Handled;
+    }
     // Byte ranges: httplib would answer a request for the same range many times over with a
     // part for each (a 5.6 KB request got 28 MB), and nothing on the page asks for one.
     if (request.has_header("Range")) {
