@@ -43,6 +43,30 @@ void ChannelBank::reset_to_neutral() {
   fail_safe_ = true;
 }
 
+ChannelBankState ChannelBank::state() const {
+  ChannelBankState state;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(count_); ++i)
+    state.channels.push_back({specs_[i].name, values_[i], held_target_[i]});
+  state.gain = gain_;
+  state.last_tracked_ns = last_tracked_ns_;
+  return state;
+}
+
+void ChannelBank::carry_on(const ChannelBankState& state) {
+  for (const ChannelBankState::Channel& carried : state.channels) {
+    const std::optional<int> index =
+        find_channel(std::span(specs_.data(), static_cast<std::size_t>(count_)), carried.name);
+    if (!index) continue;
+    const auto i = static_cast<std::size_t>(*index);
+    const double lo = std::min(specs_[i].out_min, specs_[i].out_max),
+                 hi = std::max(specs_[i].out_min, specs_[i].out_max);
+    values_[i] = std::clamp(carried.value, lo, hi);
+    held_target_[i] = std::clamp(carried.target, lo, hi);
+  }
+  gain_ = std::clamp(state.gain, 0.0, 1.0);
+  last_tracked_ns_ = state.last_tracked_ns;
+}
+
 std::span<const double> ChannelBank::step(const DriveSignals& signals, const DriveInput& input) {
   const double dt_s = stepped_ ? std::max<std::int64_t>(input.now_ns - last_step_ns_, 0) * 1e-9 : 0.0;
   last_step_ns_ = input.now_ns;

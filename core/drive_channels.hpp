@@ -14,6 +14,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace lipdrive {
 
@@ -52,7 +53,22 @@ struct DriveInput {
   std::int64_t frame_time_ns = 0;  // capture time of the signals: the smoothing's clock
 };
 
-/// The state of all channels of one drive. Channel values start at neutral.
+/// Where a drive stands when its pipeline is stopped for a reload, by channel name: what the
+/// drive of the reloaded configuration carries on from (ChannelBank::carry_on), so that a
+/// reload moves no channel.
+struct ChannelBankState {
+  struct Channel {
+    std::string name;
+    double value = 0;   // the last value sent, output units
+    double target = 0;  // the target the fail-safe gain scales towards (held while tracking is lost)
+  };
+  std::vector<Channel> channels;
+  double gain = 0;                              // the fail-safe gain
+  std::optional<std::int64_t> last_tracked_ns;  // monotonic; none: never tracked
+};
+
+/// The state of all channels of one drive. Channel values start at neutral (or, after
+/// carry_on(), where a reload found them).
 ///
 /// The fail-safe is one gain g in [0, 1] shared by all channels: value = neutral +
 /// g (target - neutral). While tracked (or the voice drives), g rises to 1 over ease_ns; when tracking has been lost
@@ -78,6 +94,13 @@ class ChannelBank {
   std::span<const double> values() const { return {values_.data(), static_cast<std::size_t>(count_)}; }
   /// The neutral values, as the last thing the drive sends when the daemon stops.
   void reset_to_neutral();
+  /// Where the drive stands, for the drive that replaces it (allocates: not on the frame path).
+  ChannelBankState state() const;
+  /// Before the first step(): every channel named in `state` carries on from its value and
+  /// target (clamped to this channel's output range), and the fail-safe from its gain and its
+  /// last tracked time, so the slew limit, the hold and the ease go on from there. A channel
+  /// `state` does not name starts at its neutral.
+  void carry_on(const ChannelBankState& state);
   /// Tracking is lost (past hold_ns) or outputs are disabled: values are easing to neutral.
   bool fail_safe_active() const { return fail_safe_; }
   int size() const { return count_; }

@@ -156,6 +156,53 @@ TEST(ChannelBank, TrackingReturnEasesBackWithoutAJump) {
   EXPECT_DOUBLE_EQ(previous, 2000);
 }
 
+TEST(ChannelBank, ADriveCarriedOnFromAnotherGoesOnWhereItStoodByName) {
+  // A reload: the tracked jaw at 1900 and a slew-limited lip carry on by name through the hold
+  // and the ease; a channel new in the configuration starts at its neutral, one no longer in it
+  // is dropped, and a value outside the new output range is brought into it.
+  ChannelSpec lip = open_channel();
+  lip.name = "lip";
+  lip.max_slew_per_s = 1000;
+  const std::vector<ChannelSpec> before{open_channel(), lip, {.name = "gone", .neutral = 0}};
+  const SafetySettings safety{.hold_ns = 250 * kMs, .ease_ns = 500 * kMs};
+  ChannelBank old_bank(before, safety);
+  std::int64_t now = 0;
+  for (; now < 2000 * kMs; now += kFrameNs) old_bank.step(open_at(0.9f), {.tracked = true, .now_ns = now});
+  const ChannelBankState state = old_bank.state();
+  ASSERT_EQ(state.channels.size(), 3u);
+  EXPECT_NEAR(state.channels[0].value, 1900, 1e-3);
+  const double lip_value = state.channels[1].value;
+  EXPECT_NEAR(lip_value, 1900, 1e-3);
+  EXPECT_DOUBLE_EQ(state.gain, 1);
+
+  ChannelSpec narrower = open_channel();
+  narrower.out_max = 1800;
+  ChannelSpec fresh = open_channel();
+  fresh.name = "new";
+  const std::vector<ChannelSpec> after{fresh, lip, narrower};
+  ChannelBank bank(after, safety);
+  bank.carry_on(state);
+  EXPECT_EQ(bank.values()[0], 1200) << "a new channel starts at its neutral";
+  EXPECT_EQ(bank.values()[1], lip_value);
+  EXPECT_EQ(bank.values()[2], 1800) << "clamped to the new range";
+  // 100 ms without a face (the new camera opening): still within the hold, nothing moves.
+  now += 100 * kMs;
+  const auto values = bank.step(open_at(0), {.tracked = false, .now_ns = now});
+  EXPECT_EQ(values[1], lip_value);
+  EXPECT_EQ(values[2], 1800);
+  EXPECT_FALSE(bank.fail_safe_active());
+  // Past the hold the carried lip eases down within its slew limit, from where it was.
+  double previous = values[1];
+  for (int frame = 0; frame < 60; ++frame) {
+    now += kFrameNs;
+    const double value = bank.step(open_at(0), {.tracked = false, .now_ns = now})[1];
+    EXPECT_LE(previous - value, 1000.0 * kFrameNs * 1e-9 + 1e-9) << frame;
+    previous = value;
+  }
+  EXPECT_LT(previous, lip_value - 100);
+  EXPECT_TRUE(bank.fail_safe_active());
+}
+
 TEST(ChannelBank, DisabledOutputsEaseToNeutralAndOverridesWin) {
   std::vector<ChannelSpec> specs{open_channel(), open_channel()};
   ChannelBank bank(specs, {.hold_ns = 100 * kMs, .ease_ns = 100 * kMs});

@@ -1,14 +1,17 @@
 // Reloading and stopping the daemon: the model and the predictor are read once and shared,
 // a Modbus server polled flat out from several clients while the daemon is reloaded and
 // stopped never reaches freed memory (the sanitizer lane runs this under AddressSanitizer),
-// and the systemd watchdog keeps being fed through reloads.
+// the systemd watchdog keeps being fed through reloads, and a reload moves no channel while a
+// stop ends at the neutral pose.
 #include "core/model_format.hpp"
 #include "daemon_process.hpp"
 #include "firmware_app/cli/command_error.hpp"
 #include "firmware_app/config/factories.hpp"
 #include "firmware_app/config/loaded_files.hpp"
 #include "firmware_app/config/model_files.hpp"
+#include "firmware_app/daemon/status_word.hpp"
 #include "fixture_paths.hpp"
+#include "osc_peers.hpp"
 
 #include <fmt/format.h>
 #include <gmock/gmock.h>
@@ -21,7 +24,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <fstream>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -62,20 +67,20 @@ class ReloadTest : public ::testing::Test {
     std::error_code ec;
     fs::remove_all(dir_, ec);
   }
-  /// The simulated camera at 60 fps, `more` tables, an `open` channel and a Modbus TCP server on
-  /// `port`, written to the test's folder.
-  fs::path modbus_server_config(int port, const std::string& more = "") const {
+  /// The simulated camera at 60 fps, `more` tables, an `open` channel (with `channel_keys`) and a
+  /// Modbus TCP server on `port`, written to the test's folder.
+  fs::path modbus_server_config(int port, const std::string& more = "", const std::string& channel_keys = "") const {
     const fs::path config = dir_ / "lipdrive.toml";
     std::ofstream(config) << test::sim_camera_at_60_fps() << more
                           << fmt::format(R"([[channels]]
 name = "open"
 signal = "open"
-[[outputs.modbus_server]]
+{}[[outputs.modbus_server]]
 transport = "tcp"
 address = "127.0.0.1"
 port = {}
 )",
-                                         port);
+                                         channel_keys, port);
     return config;
   }
   fs::path dir_;
@@ -238,6 +243,134 @@ TEST_F(ReloadTest, WhatTheOperatorSetOutlivesAReload) {
   modbus_free(master);
   daemon.signal(SIGTERM);
   EXPECT_EQ(daemon.wait(10s), 0) << daemon.log();
+}
+
+/// The first argument of the message at `address` in `bundle`, or NaN.
+float osc_value(const test::OscCapture::Bundle& bundle, const std::string& address) {
+  for (const auto& message : bundle.messages)
+    if (message.address == address) return message.number;
+  return std::nanf("");
+}
+
+// A reload hands the figure over where it is: an OSC output at 200 bundles a second sees a
+// slew-limited channel overridden to 700 at that value through a reload, a storm of reloads and
+// a configuration that does not start (the previous one started again), never the neutral pose
+// in between (the old pipeline used to send it as it stopped) nor a climb back from it (the new
+// one used to start from neutral); the new pipeline's frames start again at 1. A stop still
+// ends with the neutral pose on the output.
+TEST_F(ReloadTest, AReloadMovesNoChannelAndAStopEndsAtNeutral) {
+  LIPDRIVE_REQUIRE_BUILT(test::kClip);
+  test::OscCapture osc;
+  const int port = test::free_port();
+  const std::string osc_output =
+      fmt::format("[[outputs.osc]]\nhost = \"127.0.0.1\"\nport = {}\nrate_hz = 200\n", osc.port());
+  // Slew-limited: a drive that started again from neutral would take 0.7 s back to the value.
+  const std::string slew = "max_slew_per_s = 1000\n";
+  test::DaemonProcess daemon(modbus_server_config(port, osc_output, slew), dir_ / "stderr.txt");
+  ASSERT_TRUE(daemon.wait_for_log("running:", 120s)) << daemon.log();
+  modbus_t* master = modbus_new_tcp("127.0.0.1", port);
+  ASSERT_NE(master, nullptr);
+  ASSERT_EQ(modbus_connect(master), 0) << modbus_strerror(errno);
+  constexpr float kHeld = 700, kNeutral = 0;
+  ASSERT_EQ(modbus_write_register(master, 16, static_cast<std::uint16_t>(kHeld)), 1);  // override "open"
+  modbus_close(master);
+  modbus_free(master);
+  // The index of the first bundle with the channel held, then of the first of the new pipeline.
+  const auto first = [&](std::size_t from, auto&& is) -> std::optional<std::size_t> {
+    const auto deadline = Clock::now() + 60s;
+    for (;;) {
+      const auto bundles = osc.bundles();
+      for (std::size_t i = from; i < bundles.size(); ++i)
+        if (is(bundles, i)) return i;
+      if (Clock::now() > deadline) return std::nullopt;
+      std::this_thread::sleep_for(10ms);
+    }
+  };
+  const auto held_at =
+      first(0, [&](const auto& bundles, std::size_t i) { return osc_value(bundles[i], "/lipdrive/open") == kHeld; });
+  ASSERT_TRUE(held_at) << daemon.log();
+  std::this_thread::sleep_for(500ms);  // the face tracked, the drive under way
+
+  ASSERT_TRUE(reloaded_once(daemon)) << daemon.log();
+  const auto restarted_at = first(*held_at + 1, [&](const auto& bundles, std::size_t i) {
+    return osc_value(bundles[i], "/lipdrive/frame") < osc_value(bundles[i - 1], "/lipdrive/frame");
+  });
+  ASSERT_TRUE(restarted_at) << "no bundle of the new pipeline\n" << daemon.log();
+  // The new pipeline's drive goes on for 20 bundles.
+  ASSERT_TRUE(first(*restarted_at + 20, [](const auto&, std::size_t) { return true; })) << daemon.log();
+  const auto bundles = osc.bundles();
+  int off = 0, neutral = 0;  // bundles whose channel is not at the held value; of those, at neutral
+  for (std::size_t i = *held_at; i < bundles.size(); ++i) {
+    const float value = osc_value(bundles[i], "/lipdrive/open");
+    if (value == kHeld) continue;
+    neutral += value == kNeutral;
+    if (++off <= 3)
+      ADD_FAILURE() << "bundle " << i << " of " << bundles.size() << ", frame "
+                    << osc_value(bundles[i], "/lipdrive/frame") << " (the new pipeline's first: bundle "
+                    << *restarted_at << "): open " << value;
+  }
+  EXPECT_EQ(off, 0) << "bundles off the held value through the reload, " << neutral << " at the neutral pose";
+  const auto gap = std::chrono::duration_cast<std::chrono::milliseconds>(bundles[*restarted_at].received -
+                                                                         bundles[*restarted_at - 1].received);
+  RecordProperty("reload_gap_ms", static_cast<int>(gap.count()));
+  std::printf("reload: the last bundle of the old pipeline to the first of the new: %lld ms\n",
+              static_cast<long long>(gap.count()));
+  EXPECT_LT(gap, 10s);
+
+  // A storm of reloads (sigtimedwait takes them one after the other, some together): still not
+  // one bundle off the held value.
+  const int started = count(daemon.log(), "running:");
+  for (int i = 0; i < 20; ++i) {
+    daemon.signal(SIGHUP);
+    std::this_thread::sleep_for(10ms);
+  }
+  const auto storm_deadline = Clock::now() + 60s;
+  while (count(daemon.log(), "reloaded; restarting the pipeline") < 2 && Clock::now() < storm_deadline)
+    std::this_thread::sleep_for(10ms);
+  std::this_thread::sleep_for(1s);
+  ASSERT_TRUE(first(osc.bundles().size() + 20, [](const auto&, std::size_t) { return true; })) << daemon.log();
+  const auto after_storm = osc.bundles();
+  off = 0;
+  for (std::size_t i = bundles.size(); i < after_storm.size(); ++i)
+    off += osc_value(after_storm[i], "/lipdrive/open") != kHeld;
+  const int storm = count(daemon.log(), "running:") - started;
+  EXPECT_EQ(off, 0) << "bundles off the held value through " << storm << " more reloads";
+  std::printf("20 SIGHUPs: %d reloads, %d bundles off the held value\n", storm, off);
+  ASSERT_TRUE(daemon.running()) << daemon.log();
+
+  // A configuration that does not start (a GPIO chip this machine does not have, which the
+  // daemon stops on): the previous one, started again, carries on from the figure where it was
+  // too.
+  modbus_server_config(
+      port, osc_output + "[outputs.gpio]\nenabled = true\nchip = \"gpiochip7\"\nenable_switch = \"GPIO24\"\n", slew);
+  const std::size_t before_fallback = osc.bundles().size();
+  daemon.signal(SIGHUP);
+  const auto started_again = [&] {
+    const std::string log = daemon.log();
+    const auto failed = log.find("the new configuration does not start, going back to the previous one");
+    return failed != std::string::npos && log.find("running:", failed) != std::string::npos;
+  };
+  const auto fallback_deadline = Clock::now() + 60s;
+  while (!started_again() && Clock::now() < fallback_deadline) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(started_again()) << daemon.log();
+  ASSERT_TRUE(first(osc.bundles().size() + 20, [](const auto&, std::size_t) { return true; })) << daemon.log();
+  const auto after_fallback = osc.bundles();
+  off = 0;
+  for (std::size_t i = before_fallback; i < after_fallback.size(); ++i)
+    off += osc_value(after_fallback[i], "/lipdrive/open") != kHeld;
+  EXPECT_EQ(off, 0) << "bundles off the held value through the previous configuration started again";
+
+  // A stop: the last bundle is the neutral pose, the fail-safe's.
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(10s), 0) << daemon.log();
+  const auto last_is_neutral = [&] {
+    const auto at_stop = osc.bundles();
+    return osc_value(at_stop.back(), "/lipdrive/open") == kNeutral &&
+           (static_cast<int>(osc_value(at_stop.back(), "/lipdrive/status")) & kStatusFailSafe) != 0;
+  };
+  const auto deadline = Clock::now() + 5s;  // the last datagram on its way to the receiver's thread
+  while (!last_is_neutral() && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  EXPECT_TRUE(last_is_neutral()) << "the last bundle: open " << osc_value(osc.bundles().back(), "/lipdrive/open");
 }
 
 // A take started by --record (or [recording] start) and stopped by the operator stays stopped

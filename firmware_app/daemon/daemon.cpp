@@ -33,7 +33,8 @@ bool model_mismatch(const Config& config, const PerformerProfile& profile, Loade
 }  // namespace
 
 Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
-               const DaemonOptions& options, LoadedFiles& files, const std::optional<OperatorState>& carried)
+               const DaemonOptions& options, LoadedFiles& files, const std::optional<OperatorState>& carried,
+               const ChannelBankState& drive)
     : config_(std::move(config)), profile_(std::move(profile)) {
   if (carried) {
     control_.outputs_enabled.store(carried->outputs_enabled);
@@ -64,6 +65,7 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
       source->describe(), std::chrono::milliseconds(config_.recording.flush_interval_ms),
       timecode_ ? std::optional<TimecodeRate>(timecode_->rate()) : std::nullopt, sound_.get());
   pipeline_ = std::make_unique<Pipeline>(std::move(source), std::move(processor), settings, control_);
+  pipeline_->carry_on(drive);
   if (auto side = make_side_camera(config_)) {
     spdlog::info("side camera: {}", side->describe());
     pipeline_->set_side_camera(std::move(side));
@@ -108,8 +110,8 @@ Daemon::Daemon(Config config, PerformerProfile profile, std::unique_ptr<FramePro
 // Stopped here too for a daemon a reload replaces: its outputs finish together.
 Daemon::~Daemon() { stop(); }
 
-void Daemon::stop() {
-  pipeline_->stop();
+void Daemon::stop(Pipeline::Leave leave) {
+  pipeline_->stop(leave);
   for (const auto& output : outputs_) output->request_stop();
 }
 
@@ -266,16 +268,21 @@ void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, 
   Config previous = daemon->config();
   PerformerProfile previous_profile = daemon->profile();
   const OperatorState carried = daemon->operator_state();
+  // No neutral pose in between: the figure stays where it is, and the new drive carries on
+  // from there with its slew limits, hold and ease. So does the previous configuration's when
+  // the new one does not start: the one that failed sent nothing.
+  daemon->stop(Pipeline::Leave::kWhereItIs);
+  const ChannelBankState drive = daemon->channel_state();
   daemon.reset();
   try {
     spdlog::set_level(config.log_level);
     daemon = std::make_unique<Daemon>(std::move(config), std::move(profile), std::move(processor), options, files,
-                                      carried);
+                                      carried, drive);
   } catch (const std::exception& e) {
     spdlog::error("the new configuration does not start, going back to the previous one: {}", e.what());
     spdlog::set_level(previous.log_level);
     daemon = std::make_unique<Daemon>(previous, previous_profile, make_processor(previous, files, previous_profile),
-                                      options, files, carried);
+                                      options, files, carried, drive);
   }
   sd_notify(0, "READY=1");
 }

@@ -63,8 +63,11 @@ class Daemon {
   /// `carried` (a reload's: operator_state() of the daemon it replaces) is in force before the
   /// pipeline starts; with it, a take is recorded where one was (a take the operator stopped is
   /// not started again by --record or [recording] start, which are for the first start).
+  /// `drive` (a reload's: channel_state() of the daemon it replaces, stopped where it is) is where
+  /// the channels carry on from, by name; empty: every channel starts at its neutral.
   Daemon(Config config, PerformerProfile profile, std::unique_ptr<FrameProcessor> processor,
-         const DaemonOptions& options, LoadedFiles& files, const std::optional<OperatorState>& carried = {});
+         const DaemonOptions& options, LoadedFiles& files, const std::optional<OperatorState>& carried = {},
+         const ChannelBankState& drive = {});
   ~Daemon();
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
@@ -79,9 +82,12 @@ class Daemon {
   void report_status();
   /// --stats: frame counts and latencies on stderr.
   void print_stats() const;
-  /// Finishes the frame in hand, sends the neutral pose on every output, joins the pipeline's
-  /// threads and asks the outputs' to finish (they are joined as the daemon is destroyed).
-  void stop();
+  /// Finishes the frame in hand, sends the neutral pose on every output (a reload's stop,
+  /// kWhereItIs: nothing more, the figure stays where it is), joins the pipeline's threads and
+  /// asks the outputs' to finish (they are joined as the daemon is destroyed).
+  void stop(Pipeline::Leave leave = Pipeline::Leave::kNeutral);
+  /// Once stopped: where the drive stands, for the daemon a reload makes.
+  ChannelBankState channel_state() const { return pipeline_->channel_state(); }
 
   PipelineStats stats() const { return pipeline_->stats(); }
   bool finished() const { return pipeline_->finished(); }
@@ -121,7 +127,9 @@ class Daemon {
 /// or the predictor is wrong; the camera can only be opened once the old pipeline has let go
 /// of it, so if the new one does not start, the previous configuration is started again. The
 /// new processor is built while the old pipeline still runs (and feeds the watchdog), from
-/// `files`: a model or predictor whose file did not change is shared, not read again.
+/// `files`: a model or predictor whose file did not change is shared, not read again. The old
+/// pipeline stops with the figure where it is, and the new one's channels (or the previous
+/// configuration's, started again) carry on from there: no neutral pose in between.
 void reload(std::unique_ptr<Daemon>& daemon, const std::filesystem::path& file, const DaemonOptions& options,
             LoadedFiles& files);
 

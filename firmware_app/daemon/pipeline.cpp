@@ -75,7 +75,7 @@ void Pipeline::start() {
   }
 }
 
-void Pipeline::stop() {
+void Pipeline::stop(Leave leave) {
   // Capture and processing first, so the neutral pose is the last thing outputs see.
   if (stop_ns_ == 0 && start_ns_ > 0) stop_ns_ = monotonic_ns();
   stop_processing_ = true;
@@ -83,6 +83,7 @@ void Pipeline::stop() {
   if (processing_thread_.joinable()) processing_thread_.join();
   frame_errors_.log_held_back("frames whose measuring threw");
   if (side_) side_->stop();
+  leave_where_it_is_.store(leave == Leave::kWhereItIs, std::memory_order_relaxed);
   stop_outputs_ = true;
   if (output_thread_.joinable()) output_thread_.join();
   cpu_latency_.release();
@@ -352,6 +353,10 @@ void Pipeline::output_loop() {
     for (Output* output : outputs_) output->publish(frame);
     if (new_voice) voice_latency_.add(monotonic_ns() - voice.heard_ns);
   }
+  // A reload's stop: the outputs keep the last frame they got, and the next pipeline's drive
+  // carries on from it.
+  std::atomic_thread_fence(std::memory_order_acquire);  // pairs with stop()'s store of stop_outputs_
+  if (leave_where_it_is_.load(std::memory_order_relaxed)) return;
   // The last thing every output sees: the neutral pose.
   channels_.reset_to_neutral();
   frame.new_result = false;

@@ -129,9 +129,19 @@ class Pipeline {
   /// The performer profile the processing thread applies.
   void set_profile(const PerformerProfile& profile);
 
+  /// Before start(): the drive carries on from where a stopped pipeline left it
+  /// (ChannelBank::carry_on), for a reload.
+  void carry_on(const ChannelBankState& state) { channels_.carry_on(state); }
+
   void start();
-  /// Finishes the frame in hand, gives the outputs the neutral pose, joins all threads.
-  void stop();
+  /// How a stop leaves the figure: at the neutral pose (the daemon stops), or where it is, for
+  /// the pipeline of a reload to carry on from (channel_state()).
+  enum class Leave { kNeutral, kWhereItIs };
+  /// Finishes the frame in hand, gives the outputs the neutral pose (or, kWhereItIs, nothing
+  /// more), joins all threads. A second call does nothing more.
+  void stop(Leave leave = Leave::kNeutral);
+  /// Once stopped: where the drive stands, as the outputs last got it.
+  ChannelBankState channel_state() const { return channels_.state(); }
 
   /// max_frames processed, the recording ended, or the source failed for good.
   bool finished() const { return finished_.load(std::memory_order_acquire); }
@@ -221,6 +231,7 @@ class Pipeline {
   std::atomic<std::uint64_t> processed_{0}, tracked_{0}, lost_track_{0}, warmed_{0};
   std::atomic<bool> finished_{false};
   std::atomic<bool> stop_processing_{false}, stop_outputs_{false};
+  std::atomic<bool> leave_where_it_is_{false};        // stop()'s Leave, stored before stop_outputs_
   std::atomic<std::int64_t> output_heartbeat_ns_{0};  // the output thread's last round
   std::int64_t start_ns_ = 0;
   std::atomic<std::int64_t> stop_ns_{0};

@@ -40,7 +40,8 @@ struct DriveFrame {
 
 /// A drive output. publish() runs on the pipeline's output thread for every new result and
 /// on idle ticks (so that the fail-safe eases even when no frame arrives); the last call
-/// before the pipeline stops carries the neutral values. publish() must return promptly:
+/// before the pipeline stops carries the neutral values (publish_last), but for a reload, which
+/// stops with the figure where it is and sends no last frame. publish() must return promptly:
 /// an output whose I/O can block hands the frame to a thread of its own.
 class Output {
  public:

@@ -92,9 +92,10 @@ void SenderOutput::run() {
     ++failed_in_outage;
     if (!sleep_until(monotonic_ns() + backoff_.failed().count())) break;
   }
-  // The pipeline's last frame is the neutral pose: make sure it went out, unless a peer this
-  // waits for failed the last attempt: one more would hold the stop for the link's whole timeout
-  // (a Modbus slave that stopped answering: timeout_ms), and the service's stop is bounded.
+  // The pipeline's last frame (the neutral pose; at a reload the figure where it is): make sure
+  // it went out, unless a peer this waits for failed the last attempt: one more would hold the
+  // stop for the link's whole timeout (a Modbus slave that stopped answering: timeout_ms), and
+  // the service's stop is bounded.
   if (latest_.read(frame) != sent) {
     if (backoff_.failing() && send_waits_for_peer())
       spdlog::warn("{}: {}; the neutral pose was not sent", description_, failure());

@@ -1,7 +1,8 @@
 // The base of every output that sends drive frames to a peer over a link that can block or go
 // away (a Modbus slave, olad, ...): the frames cross to a thread of its own, which sends the
 // newest one at most rate_hz times a second, retries a failed peer with the one back-off
-// (core/backoff.hpp) and sends the pipeline's last frame (the neutral pose) before it stops,
+// (core/backoff.hpp) and sends the pipeline's last frame (the neutral pose; at a reload the
+// figure where it is) before it stops,
 // unless a peer it waits for failed its last attempt (a stop is not held for another timeout).
 //
 // Thread model: publish() runs on the pipeline's output thread and only stores the frame in a
