@@ -1,14 +1,17 @@
 // DMX512: the footprint (addresses, 8-bit and 16-bit coarse/fine levels, collisions) and the
 // OLA client against a real olad started by the test, including olad going away and coming
 // back.
+#include "captured_log.hpp"
 #include "core/dmx_footprint.hpp"
 #include "daemon_process.hpp"
 #include "drivers/ola_client.hpp"
+#include "firmware_app/outputs/dmx_output.hpp"
 #include "ola_peers.hpp"
 #include "serial_peers.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -86,6 +89,28 @@ TEST(OlaDmxClient, NoOladMeansNoConnection) {
   EXPECT_FALSE(client.connected());
   const std::array<std::uint8_t, 3> slots{1, 2, 3};
   EXPECT_FALSE(client.send(1, slots, 100));
+}
+
+// The daemon's stop with olad gone: the neutral pose cannot go out, and the log says so (as it
+// does for a Modbus slave that stopped answering) instead of nothing.
+TEST(DmxOutput, ANeutralPoseThatCannotBeSentIsSaid) {
+  DmxOutputOptions options;
+  options.rpc_port = test::free_port();  // no olad there
+  options.footprint = {DmxSlotSpec{.channel = "open", .channel_index = 0, .address = 1}};
+  const testing::CapturedLog log;
+  {
+    DmxOutput output(options);
+    DriveFrame frame;
+    frame.channel_count = 1;
+    frame.values[0] = 0.5;
+    output.publish(frame);
+    frame.counter = 1;
+    output.publish(frame);
+  }
+  const auto warnings = log.messages(spdlog::level::warn);
+  EXPECT_TRUE(std::ranges::any_of(warnings, [](const std::string& m) {
+    return m.find("the neutral pose was not sent") != std::string::npos;
+  })) << (warnings.empty() ? "no warning" : warnings.back());
 }
 
 TEST(OlaDmxClient, OladHoldsWhatWasSentAndTheClientNoticesARestart) {

@@ -1,6 +1,7 @@
 // The serial outputs: wire encoders against known values, and SerialOutput against real
 // peers through socat pty pairs (the output writes one end, the test reads the other and
 // decodes from the documented format, docs/serial-protocol.md and docs/maestro.md).
+#include "captured_log.hpp"
 #include "drivers/clock.hpp"
 #include "drivers/serial_port.hpp"
 #include "drivers/serial_protocol.hpp"
@@ -235,6 +236,17 @@ TEST(SerialOutput, MissingDeviceStartsUnhealthyAndPublishesFast) {
   EXPECT_FALSE(output.healthy());
   EXPECT_EQ(output.counters().offline, published);
   EXPECT_EQ(output.counters().written, 0u);
+}
+
+// The neutral pose at the daemon's stop, on a line that is gone: said, not left to be guessed.
+TEST(SerialOutput, ANeutralPoseThatCannotBeSentIsSaid) {
+  const auto specs = channels();
+  SerialOutput output(options_for("/nonexistent/tty", SerialOutputOptions::Mode::kFramed), specs);
+  const testing::CapturedLog log;
+  output.publish_last(test_frame(1));
+  const auto warnings = log.messages(spdlog::level::warn);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "serial framed /nonexistent/tty 115200 8N1: the neutral pose was not sent (the line is gone)");
 }
 
 TEST(SerialPort, RefusedRs485IsReportedNotFatal) {

@@ -96,12 +96,8 @@ void SenderOutput::run() {
   // it went out, unless a peer this waits for failed the last attempt: one more would hold the
   // stop for the link's whole timeout (a Modbus slave that stopped answering: timeout_ms), and
   // the service's stop is bounded.
-  if (latest_.read(frame) != sent) {
-    if (backoff_.failing() && send_waits_for_peer())
-      spdlog::warn("{}: {}; the neutral pose was not sent", description_, failure());
-    else
-      send_counted(frame);
-  }
+  if (latest_.read(frame) != sent && ((backoff_.failing() && send_waits_for_peer()) || !send_counted(frame)))
+    spdlog::warn("{}: {}; the neutral pose was not sent", description_, failure());
   close();
   healthy_.store(false, std::memory_order_relaxed);
 }

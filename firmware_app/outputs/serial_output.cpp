@@ -126,7 +126,12 @@ void SerialOutput::publish_last(const DriveFrame& frame) {
   const std::int64_t deadline_ns = monotonic_ns() + 200'000'000;
   for (;;) {
     publish(frame);
-    if (last_written_counter_ == frame.counter || monotonic_ns() > deadline_ns) return;
+    if (last_written_counter_ == frame.counter) return;
+    if (monotonic_ns() > deadline_ns) {
+      spdlog::warn("{}: the neutral pose was not sent ({})", describe(),
+                   port_ ? "the line did not take it within 200 ms" : "the line is gone");
+      return;
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
 }
