@@ -28,6 +28,25 @@ using ::testing::HasSubstr;
 using test::kClip;
 constexpr int kWidthNeutral = 500;
 
+/// The drive the tests run: `open`, and `width` whose neutral is kWidthNeutral; held 100 ms
+/// when the face is lost, then eased to neutral over 200 ms.
+std::string drive_of_open_and_width(int print_interval_ms) {
+  return fmt::format(R"([status]
+print_interval_ms = {}
+[safety]
+hold_ms = 100
+ease_ms = 200
+[[channels]]
+name = "open"
+signal = "open"
+[[channels]]
+name = "width"
+signal = "width"
+neutral = {}
+)",
+                     print_interval_ms, kWidthNeutral);
+}
+
 /// The "median X ms, p99 Y ms" figures of the --stats line that starts with `prefix`.
 std::string stats_line(const std::string& log, const std::string& prefix) {
   const auto at = log.find(prefix);
@@ -43,19 +62,8 @@ TEST(DaemonOutputs, ModbusAndSerialFollowTheMouthAndEndNeutral) {
   const int port = test::free_port();
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << test::sim_camera_at_60_fps()
-                        << fmt::format(R"([status]
-print_interval_ms = 0
-[safety]
-hold_ms = 100
-ease_ms = 200
-[[channels]]
-name = "open"
-signal = "open"
-[[channels]]
-name = "width"
-signal = "width"
-neutral = {}
-[[outputs.modbus_server]]
+                        << drive_of_open_and_width(0)
+                        << fmt::format(R"([[outputs.modbus_server]]
 port = {}
 [[outputs.modbus_server]]
 transport = "rtu"
@@ -65,7 +73,7 @@ unit_id = 7
 mode = "framed"
 device = "{}"
 )",
-                                       kWidthNeutral, port, rtu_line.a.string(), line.a.string());
+                                       port, rtu_line.a.string(), line.a.string());
   test::DaemonProcess daemon(config, dir.path() / "stderr.txt", "--stats");
   ASSERT_TRUE(daemon.wait_for_log("running:")) << daemon.log();
 
@@ -144,25 +152,14 @@ TEST(DaemonOutputs, AModbusPortTakenAtStartStopsNoOtherOutput) {
   test::PortInUse taken;  // another program listens on the server's port
   const fs::path config = dir.path() / "lipdrive.toml";
   std::ofstream(config) << test::sim_camera_at_60_fps()
-                        << fmt::format(R"([status]
-print_interval_ms = 200
-[safety]
-hold_ms = 100
-ease_ms = 200
-[[channels]]
-name = "open"
-signal = "open"
-[[channels]]
-name = "width"
-signal = "width"
-neutral = {}
-[[outputs.modbus_server]]
+                        << drive_of_open_and_width(200)
+                        << fmt::format(R"([[outputs.modbus_server]]
 port = {}
 [[outputs.serial]]
 mode = "framed"
 device = "{}"
 )",
-                                       kWidthNeutral, taken.port(), line.a.string());
+                                       taken.port(), line.a.string());
   test::DaemonProcess daemon(config, dir.path() / "stderr.txt");
   // Before the fix the daemon exited at once (1): wait for whichever comes first.
   ASSERT_TRUE(test::eventually(
