@@ -27,6 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 using test::kClip;
 using test::kModel;
@@ -496,7 +497,11 @@ TEST_F(ConfigTest, CheckConfigReadsTheFilesTheDaemonReads) {
   EXPECT_EQ(profile.exit_code, 65) << profile.output;
   EXPECT_THAT(profile.output, HasSubstr((dir_ / "ana.toml").string()));
   write("");
-  EXPECT_EQ(run_lipdrive("check-config " + file_.string()).exit_code, 0);
+  const test::CommandRun nothing_driven = run_lipdrive("check-config " + file_.string());
+  EXPECT_EQ(nothing_driven.exit_code, 0) << nothing_driven.output;
+  EXPECT_THAT(nothing_driven.output, HasSubstr("no output is configured: the daemon would drive nothing"));
+  write("", std::string(kJawChannel) + "[[outputs.osc]]\nhost = \"127.0.0.1\"\n");
+  EXPECT_THAT(run_lipdrive("check-config " + file_.string()).output, Not(HasSubstr("no output")));
 }
 
 // A USB camera enumerated after the daemon started at boot: the daemon runs (the figure at

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <memory>
 
@@ -26,6 +27,10 @@ void add_check_config_command(CLI::App& app) {
     if (config.voice.enabled) load_voice(config);
     check_audio_inputs(config);
     check_outputs(config);
+    const Config::Outputs& outputs = config.outputs;
+    if (outputs.modbus_servers.empty() && outputs.modbus_clients.empty() && outputs.serial.empty() &&
+        outputs.dmx.empty() && outputs.osc.empty() && !outputs.gpio.enabled)
+      spdlog::warn("{}: no output is configured: the daemon would drive nothing", file->string());
     fmt::print("{}: ok\n", file->string());
   });
 }
