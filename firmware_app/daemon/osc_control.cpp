@@ -52,6 +52,7 @@ bool OscControl::bind() {
                     describe(), e.what(), kMaxRebind.count());
     return false;
   }
+  bound_port_.store(receiver_->port(), std::memory_order_relaxed);
   if (failing) spdlog::info("{}: bound; OSC control again", describe());
   rebind_.succeeded();
   return true;

@@ -39,6 +39,8 @@ class OscControl {
   std::optional<std::string> next_take_name();
 
   std::string describe() const { return "osc control udp " + where_; }
+  /// The port bound (port 0 picks a free one); 0 while not bound.
+  int port() const { return bound_port_.load(std::memory_order_relaxed); }
 
  private:
   void run();
@@ -51,6 +53,7 @@ class OscControl {
   const std::string where_;              // "127.0.0.1:8000"
   std::optional<OscReceiver> receiver_;  // the thread's (the constructor's before it starts)
   Backoff rebind_;                       // the thread's
+  std::atomic<int> bound_port_{0};
   DriveControl& control_;
   // A command's lines at most ten a second each (a fader that sends output_enable at its own
   // rate, a sender gone wrong), with the count held back; refused datagrams, bundles and
