@@ -98,7 +98,6 @@ void OscControl::handle(const OscMessage& m) {
   // Arguments are checked before anything acts: a command whose argument is of another type or
   // out of its range is refused with the reason, and nothing of it is done (a NaN sent as
   // output_enable does not switch the drive on).
-  const auto slate_at = [&](int at) -> std::optional<std::string_view> { return m.string(at); };
   const auto take_at = [&](int at) -> std::optional<int> {
     const auto take = m.number(at);
     if (!take || !(*take >= 0 && *take < 1e6) || *take != std::floor(*take)) return std::nullopt;
@@ -110,7 +109,7 @@ void OscControl::handle(const OscMessage& m) {
   };
   std::size_t command = 0;  // which of command_log_
   if (address == osc::kRecordStart) {
-    const auto slate = m.size() > 0 ? slate_at(0) : std::nullopt;
+    const auto slate = m.size() > 0 ? m.string(0) : std::nullopt;
     const auto take = m.size() > 1 ? take_at(1) : std::nullopt;
     if ((m.size() > 0 && !slate) || (m.size() > 1 && !take) || m.size() > 2)
       return refuse("it takes no argument, a slate (s), or a slate and a take number (s i, 0..999999)");
@@ -123,7 +122,7 @@ void OscControl::handle(const OscMessage& m) {
     control_.recording_request.store(0, std::memory_order_relaxed);
   } else if (address == osc::kSlate) {
     command = 2;
-    const auto slate = m.size() == 1 ? slate_at(0) : std::nullopt;
+    const auto slate = m.size() == 1 ? m.string(0) : std::nullopt;
     if (!slate) return refuse("it takes one slate (s)");
     std::lock_guard lock(mutex_);
     slate_ = file_name_part(*slate);
